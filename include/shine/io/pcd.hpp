@@ -1,0 +1,18 @@
+// PCD (Point Cloud Library) files: ascii, binary and binary_compressed.
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <vector>
+
+namespace shine {
+
+/// Reads the x y z fields of a PCD file (any field order, F4 or F8 coordinates, other fields
+/// skipped). Throws IoError naming the file and the header line or byte offset on a malformed
+/// header, missing x/y/z fields, truncated data or a corrupt LZF block.
+std::vector<Eigen::Vector3f> read_pcd_points(const std::filesystem::path& path);
+
+/// Writes x y z as a binary PCD atomically.
+void write_pcd_points(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points);
+
+}  // namespace shine

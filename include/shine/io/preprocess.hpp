@@ -1,0 +1,48 @@
+// Per-scan preprocessing in the sensor frame: drop invalid points, range and box crop, voxel
+// downsampling.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <filesystem>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace shine {
+
+/// What to do with points whose coordinates are NaN or infinite.
+enum class InvalidPointPolicy { kError, kDrop };
+
+struct PreprocessConfig {
+    double min_range_m = 1.5;   ///< points closer to the sensor are dropped (ego vehicle)
+    double max_range_m = 60.0;  ///< points farther away are dropped
+    /// Axis-aligned crop box in the sensor frame; default: no crop.
+    Eigen::Vector3d box_min_sensor_m = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
+    Eigen::Vector3d box_max_sensor_m = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+    double voxel_downsample_m = 0.05;  ///< keep one point per voxel of this size; 0 disables
+    InvalidPointPolicy invalid_points = InvalidPointPolicy::kError;
+};
+
+/// Counts of what preprocessing dropped, for logs and stats.json.
+struct PreprocessStats {
+    std::size_t input = 0;
+    std::size_t dropped_nonfinite = 0;
+    std::size_t dropped_zero_range = 0;
+    std::size_t dropped_range = 0;
+    std::size_t dropped_box = 0;
+    std::size_t dropped_downsample = 0;
+    std::size_t output = 0;
+    PreprocessStats& operator+=(const PreprocessStats& other);
+};
+
+/// Filters a scan. With InvalidPointPolicy::kError a NaN or infinite point throws DataError naming
+/// `source` and the point's index. Exact zero-range points (sensors' "no return") are always
+/// dropped and counted. Downsampling keeps, per voxel, the point closest to the voxel centre
+/// (deterministic, independent of point order).
+std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
+                                             const PreprocessConfig& config,
+                                             const std::filesystem::path& source,
+                                             PreprocessStats* stats = nullptr);
+
+}  // namespace shine

@@ -1,0 +1,57 @@
+// A sequence of LiDAR scans with known poses, read lazily from disk one scan at a time.
+//
+// Layouts recognised in a directory:
+//   - KITTI odometry: velodyne/*.bin, poses.txt (or a pose file given explicitly), optional
+//     calib.txt whose Tr turns camera poses into LiDAR poses: T_world_lidar = Tr^-1 * P * Tr.
+//   - A folder of .ply or .pcd scans (in the directory or its scans/ subfolder), sorted by name,
+//     with poses.txt (KITTI format) or poses_tum.txt / *.tum (TUM format) in the directory.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace shine {
+
+/// One scan: points in the sensor frame and the sensor's pose in the world frame.
+struct Scan {
+    std::vector<Eigen::Vector3f> points_sensor;
+    Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
+    std::filesystem::path source;
+};
+
+/// How to open a sequence; every member has a sensible default.
+struct ScanSequenceOptions {
+    std::filesystem::path poses_path;   ///< empty: found in the directory
+    std::string pose_format = "auto";   ///< auto | kitti | tum
+    std::filesystem::path calib_path;   ///< empty: DIR/calib.txt if present
+    int first_frame = 0;                ///< first scan index used
+    int last_frame = -1;                ///< last scan index used (inclusive), -1 = all
+    int frame_step = 1;                 ///< use every n-th scan
+};
+
+/// Lazily loaded scan sequence. Opening validates the layout and the pose count; scans are read
+/// on demand by load(), so a long drive never has to fit in memory.
+class ScanSequence {
+public:
+    /// Opens `dir`. Throws IoError (missing directory, no scans, unreadable pose file) or DataError
+    /// (fewer poses than scans) with a message naming the path and the fix.
+    static ScanSequence open(const std::filesystem::path& dir, const ScanSequenceOptions& options = {});
+
+    std::size_t size() const { return scan_paths_.size(); }
+    /// T_world_sensor of scan i (calibration applied).
+    const Eigen::Isometry3d& pose(std::size_t i) const { return poses_.at(i); }
+    const std::filesystem::path& scan_path(std::size_t i) const { return scan_paths_.at(i); }
+    const std::filesystem::path& directory() const { return dir_; }
+    /// Reads scan i from disk (points as stored; filtering is preprocess_scan's job).
+    Scan load(std::size_t i) const;
+
+private:
+    std::filesystem::path dir_;
+    std::vector<std::filesystem::path> scan_paths_;
+    std::vector<Eigen::Isometry3d> poses_;
+};
+
+}  // namespace shine
