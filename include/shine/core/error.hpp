@@ -12,31 +12,31 @@ namespace shine {
 
 /// Base of all errors ShineVDB reports to users.
 class Error : public std::runtime_error {
-public:
+  public:
     explicit Error(const std::string& message) : std::runtime_error(message) {}
 };
 
 /// A file could not be opened, read, parsed or written: the message names the file and the place.
 class IoError : public Error {
-public:
+  public:
     using Error::Error;
 };
 
 /// A configuration key or command-line value is unknown or out of range.
 class ConfigError : public Error {
-public:
+  public:
     using Error::Error;
 };
 
 /// Input data is valid on its own but inconsistent (e.g. fewer poses than scans).
 class DataError : public Error {
-public:
+  public:
     using Error::Error;
 };
 
 /// A run was asked to stop (SIGINT/SIGTERM) and stopped cleanly.
 class Interrupted : public Error {
-public:
+  public:
     using Error::Error;
 };
 

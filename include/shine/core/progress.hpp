@@ -9,7 +9,7 @@ namespace shine {
 
 /// Prints a throttled progress line to stderr; silent when disabled (quiet runs, tests).
 class Progress {
-public:
+  public:
     Progress(std::string label, std::size_t total, bool enabled = true);
     ~Progress();
     /// Sets the number of finished steps; redraws at most ten times a second.
@@ -20,7 +20,7 @@ public:
     /// Global switch used by the CLI's --quiet flag.
     static void set_globally_enabled(bool enabled);
 
-private:
+  private:
     void draw(std::size_t done, const std::string& detail, bool final_line);
 
     std::string label_;

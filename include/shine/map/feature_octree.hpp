@@ -1,0 +1,118 @@
+// The sparse hierarchical feature map (paper Sec. III-A, "Implicit Neural Map Representation").
+//
+// H levels of node-corner features. Level 0 is the finest (cell size = leaf_size_m); each coarser
+// level doubles the cell size. Every level is an OpenVDB grid whose voxels are the corners of that
+// level's cells: voxel (i,j,k) of level l sits at (i,j,k) * cell_size_m(l) in the map frame and
+// holds the row of its feature vector in one contiguous feature table shared by all levels. This
+// index-grid layout keeps OpenVDB's sparse, O(1)-average access (through ValueAccessors) while the
+// features themselves stay in a dense array that the optimiser, importance weights and
+// half-precision storage can address by row.
+//
+// A cell exists at a level when all 8 of its corners are allocated; allocation adds the cells
+// containing the given points at every level. The map only grows.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace shine {
+
+/// Configuration of the feature hierarchy.
+struct FeatureOctreeConfig {
+    double leaf_size_m = 0.2;  ///< level-0 cell size
+    int num_levels = 3;        ///< H
+    int feature_dim = 8;       ///< L
+    float init_std = 0.05f;    ///< features start as N(0, init_std^2)
+    std::uint64_t seed = 42;   ///< initial features depend only on (seed, level, corner)
+};
+
+/// Corner rows and interpolation weights of one query point at one level.
+struct LevelCorners {
+    std::int32_t rows[8];  ///< feature-table rows of the cell's corners, in (dx,dy,dz) bit order
+    float t[3];            ///< position inside the cell, each in [0,1)
+};
+
+class FeatureOctreeImpl;
+
+/// H OpenVDB index grids of node corners plus the contiguous feature table.
+class FeatureOctree {
+  public:
+    explicit FeatureOctree(const FeatureOctreeConfig& config);
+    ~FeatureOctree();
+    FeatureOctree(FeatureOctree&&) noexcept;
+    FeatureOctree& operator=(FeatureOctree&&) noexcept;
+
+    const FeatureOctreeConfig& config() const { return config_; }
+    int num_levels() const { return config_.num_levels; }
+    int feature_dim() const { return config_.feature_dim; }
+    /// Cell edge length of `level` in metres: leaf_size_m * 2^level.
+    double cell_size_m(int level) const;
+
+    /// Allocates, at every level, the cells containing the points (map frame). Returns the number
+    /// of corners added. Not thread-safe with concurrent queries.
+    std::size_t allocate_cells(const std::vector<Eigen::Vector3f>& points_map);
+
+    /// Finds the cell of `level` containing `point_map`; false if any of its corners is missing.
+    /// Convenience for single queries; hot loops use a CellLookup per thread.
+    bool find_cell(int level, const Eigen::Vector3f& point_map, LevelCorners& out) const;
+
+    /// True when the level-0 cell with integer coordinates `cell` has all 8 corners.
+    bool has_leaf_cell(const Eigen::Vector3i& cell) const;
+
+    /// Integer coordinates of every allocated level-0 cell (all 8 corners present), sorted.
+    std::vector<Eigen::Vector3i> leaf_cells() const;
+
+    /// Number of allocated corners (= feature rows) over all levels.
+    std::size_t num_corners() const { return features_.size() / config_.feature_dim; }
+    std::size_t num_corners(int level) const;
+
+    float* feature(std::int32_t row) {
+        return features_.data() + std::size_t(row) * config_.feature_dim;
+    }
+    const float* feature(std::int32_t row) const {
+        return features_.data() + std::size_t(row) * config_.feature_dim;
+    }
+    std::vector<float>& features() { return features_; }
+    const std::vector<float>& features() const { return features_; }
+
+    /// Bytes of the map in memory: feature table plus the OpenVDB trees' memUsage().
+    std::size_t memory_bytes() const;
+    std::size_t feature_bytes() const { return features_.size() * sizeof(float); }
+    std::size_t structure_bytes() const;
+
+    /// Access for the serialisation code (map_file.cpp) and tests; others use the API above.
+    FeatureOctreeImpl& impl() { return *impl_; }
+    const FeatureOctreeImpl& impl() const { return *impl_; }
+
+    /// Features are a pure function of (seed, level, corner): used at allocation and in tests.
+    static void initial_feature(std::uint64_t seed, int level, const Eigen::Vector3i& corner,
+                                float init_std, float* out, int feature_dim);
+
+  private:
+    FeatureOctreeConfig config_;
+    std::vector<float> features_;
+    std::unique_ptr<FeatureOctreeImpl> impl_;
+};
+
+/// Cached, non-thread-safe corner lookups into a FeatureOctree: create one per thread or task.
+/// Valid while the octree is not modified (allocation invalidates it).
+class CellLookup {
+  public:
+    explicit CellLookup(const FeatureOctree& octree);
+    ~CellLookup();
+    CellLookup(const CellLookup&) = delete;
+    CellLookup& operator=(const CellLookup&) = delete;
+
+    /// As FeatureOctree::find_cell, through cached OpenVDB accessors.
+    bool find_cell(int level, const Eigen::Vector3f& point_map, LevelCorners& out);
+
+  private:
+    struct Accessors;
+    const FeatureOctree& octree_;
+    std::unique_ptr<Accessors> accessors_;
+};
+
+}  // namespace shine

@@ -1,0 +1,35 @@
+// The rays a mapper trains on: scan endpoints in the map frame with the sensor origin of their
+// scan.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+namespace shine {
+
+/// Endpoints of all rays of the scans added so far, and the sensor origin of each scan.
+class RaySet {
+  public:
+    /// Adds a scan; returns its index.
+    std::uint32_t add_scan(const Eigen::Vector3f& origin_map,
+                           const std::vector<Eigen::Vector3f>& endpoints_map);
+    std::size_t num_rays() const { return endpoints_.size(); }
+    std::size_t num_scans() const { return origins_.size(); }
+    const Eigen::Vector3f& endpoint(std::size_t ray) const { return endpoints_[ray]; }
+    const Eigen::Vector3f& origin_of_ray(std::size_t ray) const {
+        return origins_[scan_of_ray_[ray]];
+    }
+    std::uint32_t scan_of_ray(std::size_t ray) const { return scan_of_ray_[ray]; }
+    /// First ray of scan s (rays of a scan are contiguous); first_ray(num_scans()) = num_rays().
+    std::size_t first_ray(std::uint32_t scan) const { return scan_begin_[scan]; }
+    std::size_t memory_bytes() const;
+
+  private:
+    std::vector<Eigen::Vector3f> endpoints_;
+    std::vector<std::uint32_t> scan_of_ray_;
+    std::vector<Eigen::Vector3f> origins_;
+    std::vector<std::size_t> scan_begin_{0};
+};
+
+}  // namespace shine

@@ -1,0 +1,53 @@
+#include "shine/model/feature_encoding.hpp"
+
+#include <algorithm>
+
+#include "shine/model/interpolation.hpp"
+
+namespace shine {
+
+void encode_point(CellLookup& lookup, const FeatureOctree& octree, const Eigen::Vector3f& point_map,
+                  bool with_gradients, EncodedPoint& out) {
+    out.num_corners = 0;
+    out.has_level0 = false;
+    LevelCorners cell;
+    for (int level = 0; level < octree.num_levels(); ++level) {
+        if (!lookup.find_cell(level, point_map, cell)) continue;
+        const int base = out.num_corners;
+        std::copy(cell.rows, cell.rows + 8, out.rows + base);
+        if (with_gradients) {
+            corner_weights_and_gradients(cell.t, static_cast<float>(octree.cell_size_m(level)),
+                                         out.weights + base, out.weight_gradients_per_m + base);
+        } else {
+            corner_weights(cell.t, out.weights + base);
+        }
+        if (level == 0) out.has_level0 = true;
+        out.num_corners += 8;
+    }
+}
+
+void gather_feature(const EncodedPoint& encoded, const float* features, int feature_dim,
+                    float* feature_out) {
+    std::fill(feature_out, feature_out + feature_dim, 0.0f);
+    for (int c = 0; c < encoded.num_corners; ++c) {
+        const float* f = features + std::size_t(encoded.rows[c]) * feature_dim;
+        const float w = encoded.weights[c];
+        for (int l = 0; l < feature_dim; ++l) feature_out[l] += w * f[l];
+    }
+}
+
+void feature_jacobian(const EncodedPoint& encoded, const float* features, int feature_dim,
+                      float* jacobian_out) {
+    std::fill(jacobian_out, jacobian_out + 3 * feature_dim, 0.0f);
+    for (int c = 0; c < encoded.num_corners; ++c) {
+        const float* f = features + std::size_t(encoded.rows[c]) * feature_dim;
+        const float* g = encoded.weight_gradients_per_m[c];
+        for (int l = 0; l < feature_dim; ++l) {
+            jacobian_out[l * 3 + 0] += f[l] * g[0];
+            jacobian_out[l * 3 + 1] += f[l] * g[1];
+            jacobian_out[l * 3 + 2] += f[l] * g[2];
+        }
+    }
+}
+
+}  // namespace shine
