@@ -21,12 +21,12 @@ void write_kitti_bin(const std::filesystem::path& path, const std::vector<Eigen:
 /// that is not orthonormal (tolerance 1e-3).
 std::vector<Eigen::Isometry3d> read_kitti_poses(const std::filesystem::path& path);
 
-/// Writes a KITTI pose file atomically (full double precision).
+/// Writes a KITTI pose file atomically (%.17g, so doubles round-trip exactly).
 void write_kitti_poses(const std::filesystem::path& path,
                        const std::vector<Eigen::Isometry3d>& poses);
 
-/// Reads the `Tr:` line of a KITTI calib.txt (LiDAR-to-camera transform). Throws IoError if the
-/// file has no valid Tr line.
+/// Reads the `Tr:` line (or `Tr_velo_to_cam:`) of a KITTI calib.txt (LiDAR-to-camera transform);
+/// other lines (P0..P3) are ignored. Throws IoError if the file has no valid Tr line.
 Eigen::Isometry3d read_kitti_calib_tr(const std::filesystem::path& path);
 
 }  // namespace shine

@@ -9,10 +9,13 @@ namespace shine {
 
 /// Reads the x y z fields of a PCD file (any field order, F4 or F8 coordinates, other fields
 /// skipped). Throws IoError naming the file and the header line or byte offset on a malformed
-/// header, missing x/y/z fields, truncated data or a corrupt LZF block.
+/// header, missing x/y/z fields, truncated data or a corrupt LZF block. Binary data is read as
+/// little-endian (what PCL writes on every common platform). NaN points (PCL's "no return") are
+/// returned as stored; preprocess_scan decides what happens to them.
 std::vector<Eigen::Vector3f> read_pcd_points(const std::filesystem::path& path);
 
 /// Writes x y z as a binary PCD atomically.
-void write_pcd_points(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points);
+void write_pcd_points(const std::filesystem::path& path,
+                      const std::vector<Eigen::Vector3f>& points);
 
 }  // namespace shine

@@ -18,8 +18,10 @@ struct PreprocessConfig {
     double min_range_m = 1.5;   ///< points closer to the sensor are dropped (ego vehicle)
     double max_range_m = 60.0;  ///< points farther away are dropped
     /// Axis-aligned crop box in the sensor frame; default: no crop.
-    Eigen::Vector3d box_min_sensor_m = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
-    Eigen::Vector3d box_max_sensor_m = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector3d box_min_sensor_m =
+        Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
+    Eigen::Vector3d box_max_sensor_m =
+        Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
     double voxel_downsample_m = 0.05;  ///< keep one point per voxel of this size; 0 disables
     InvalidPointPolicy invalid_points = InvalidPointPolicy::kError;
 };
@@ -39,7 +41,10 @@ struct PreprocessStats {
 /// Filters a scan. With InvalidPointPolicy::kError a NaN or infinite point throws DataError naming
 /// `source` and the point's index. Exact zero-range points (sensors' "no return") are always
 /// dropped and counted. Downsampling keeps, per voxel, the point closest to the voxel centre
-/// (deterministic, independent of point order).
+/// (deterministic, independent of point order); the downsampled output is sorted by voxel key, so
+/// it is identical element by element for any permutation of the input. Without downsampling
+/// the input order is kept. If `stats` is given it is overwritten with this scan's counts (add
+/// them up with +=). Throws ConfigError naming the key for an invalid configuration.
 std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
                                              const PreprocessConfig& config,
                                              const std::filesystem::path& source,

@@ -5,6 +5,9 @@
 //     calib.txt whose Tr turns camera poses into LiDAR poses: T_world_lidar = Tr^-1 * P * Tr.
 //   - A folder of .ply or .pcd scans (in the directory or its scans/ subfolder), sorted by name,
 //     with poses.txt (KITTI format) or poses_tum.txt / *.tum (TUM format) in the directory.
+// Scans are sorted by file name (numerically when names are plain numbers) and matched to poses
+// by index; TUM timestamps are not used for matching. DIR/calib.txt is applied to KITTI-format
+// poses only; an explicit calib_path is applied to either format.
 #pragma once
 
 #include <Eigen/Core>
@@ -24,21 +27,23 @@ struct Scan {
 
 /// How to open a sequence; every member has a sensible default.
 struct ScanSequenceOptions {
-    std::filesystem::path poses_path;   ///< empty: found in the directory
-    std::string pose_format = "auto";   ///< auto | kitti | tum
-    std::filesystem::path calib_path;   ///< empty: DIR/calib.txt if present
-    int first_frame = 0;                ///< first scan index used
-    int last_frame = -1;                ///< last scan index used (inclusive), -1 = all
-    int frame_step = 1;                 ///< use every n-th scan
+    std::filesystem::path poses_path;  ///< empty: found in the directory
+    std::string pose_format = "auto";  ///< auto | kitti | tum
+    std::filesystem::path calib_path;  ///< empty: DIR/calib.txt if present
+    int first_frame = 0;               ///< first scan index used
+    int last_frame = -1;               ///< last scan index used (inclusive), -1 = all
+    int frame_step = 1;                ///< use every n-th scan
 };
 
 /// Lazily loaded scan sequence. Opening validates the layout and the pose count; scans are read
 /// on demand by load(), so a long drive never has to fit in memory.
 class ScanSequence {
-public:
-    /// Opens `dir`. Throws IoError (missing directory, no scans, unreadable pose file) or DataError
-    /// (fewer poses than scans) with a message naming the path and the fix.
-    static ScanSequence open(const std::filesystem::path& dir, const ScanSequenceOptions& options = {});
+  public:
+    /// Opens `dir`. Throws IoError (missing directory, no scans, unreadable pose file), DataError
+    /// (fewer poses than scans; extra poses are ignored) or ConfigError (frame range, pose
+    /// format) with a message naming the path and the fix.
+    static ScanSequence open(const std::filesystem::path& dir,
+                             const ScanSequenceOptions& options = {});
 
     std::size_t size() const { return scan_paths_.size(); }
     /// T_world_sensor of scan i (calibration applied).
@@ -48,7 +53,7 @@ public:
     /// Reads scan i from disk (points as stored; filtering is preprocess_scan's job).
     Scan load(std::size_t i) const;
 
-private:
+  private:
     std::filesystem::path dir_;
     std::vector<std::filesystem::path> scan_paths_;
     std::vector<Eigen::Isometry3d> poses_;

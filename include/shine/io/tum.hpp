@@ -17,4 +17,7 @@ struct StampedPose {
 /// field count or a non-number throws IoError naming the file and the line.
 std::vector<StampedPose> read_tum_poses(const std::filesystem::path& path);
 
+/// Writes a TUM trajectory atomically (full double precision, unit quaternions).
+void write_tum_poses(const std::filesystem::path& path, const std::vector<StampedPose>& poses);
+
 }  // namespace shine

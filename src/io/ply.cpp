@@ -1,0 +1,615 @@
+// PLY reader and writer.
+//
+// The reader loads the whole file into memory once, parses the header, checks every element count
+// against the bytes that actually follow the header (so a corrupt header cannot make us allocate
+// gigabytes), then walks the body with a bounds-checked cursor (binary) or tokenizer (ascii).
+// The writer fills one contiguous buffer and hands it to the stream in a single call.
+#include "shine/io/ply.hpp"
+
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <string_view>
+
+#include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
+
+namespace shine {
+namespace fs = std::filesystem;
+
+namespace ply_internal {
+namespace {
+
+[[noreturn]] void fail(const fs::path& path, const std::string& where, const std::string& what) {
+    throw IoError("PLY file '" + path.string() + "'" + (where.empty() ? "" : ", " + where) + ": " +
+                  what);
+}
+
+std::string read_whole_file(const fs::path& path) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) fail(path, "", "file does not exist");
+    if (fs::is_directory(path, ec)) fail(path, "", "is a directory, expected a .ply file");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) fail(path, "", "cannot open for reading (permissions?)");
+    in.seekg(0, std::ios::end);
+    const std::streamoff size = in.tellg();
+    if (size < 0) fail(path, "", "cannot determine the file size");
+    if (size == 0) fail(path, "", "file is empty");
+    in.seekg(0, std::ios::beg);
+    std::string data(static_cast<std::size_t>(size), '\0');
+    in.read(data.data(), size);
+    if (in.gcount() != size) fail(path, "", "read error (file changed while reading?)");
+    return data;
+}
+
+enum class Format { kAscii, kBinaryLittle, kBinaryBig };
+
+enum class Scalar { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
+
+std::size_t scalar_size(Scalar s) {
+    switch (s) {
+        case Scalar::kInt8:
+        case Scalar::kUint8:
+            return 1;
+        case Scalar::kInt16:
+        case Scalar::kUint16:
+            return 2;
+        case Scalar::kInt32:
+        case Scalar::kUint32:
+        case Scalar::kFloat32:
+            return 4;
+        case Scalar::kFloat64:
+            return 8;
+    }
+    return 0;
+}
+
+bool is_integer(Scalar s) { return s != Scalar::kFloat32 && s != Scalar::kFloat64; }
+
+bool parse_scalar_type(std::string_view name, Scalar* out) {
+    static const struct {
+        const char* name;
+        Scalar type;
+    } kTypes[] = {
+        {"char", Scalar::kInt8},      {"int8", Scalar::kInt8},       {"uchar", Scalar::kUint8},
+        {"uint8", Scalar::kUint8},    {"short", Scalar::kInt16},     {"int16", Scalar::kInt16},
+        {"ushort", Scalar::kUint16},  {"uint16", Scalar::kUint16},   {"int", Scalar::kInt32},
+        {"int32", Scalar::kInt32},    {"uint", Scalar::kUint32},     {"uint32", Scalar::kUint32},
+        {"float", Scalar::kFloat32},  {"float32", Scalar::kFloat32}, {"double", Scalar::kFloat64},
+        {"float64", Scalar::kFloat64}};
+    for (const auto& t : kTypes) {
+        if (name == t.name) {
+            *out = t.type;
+            return true;
+        }
+    }
+    return false;
+}
+
+struct Property {
+    std::string name;
+    bool is_list = false;
+    Scalar type = Scalar::kFloat32;      // scalar type, or the item type of a list
+    Scalar count_type = Scalar::kUint8;  // only for lists
+};
+
+struct Element {
+    std::string name;
+    std::uint64_t count = 0;
+    std::vector<Property> properties;
+    int header_line = 0;
+
+    /// Smallest number of body bytes one binary element can occupy (lists may be empty).
+    std::size_t min_binary_size() const {
+        std::size_t n = 0;
+        for (const auto& p : properties) n += scalar_size(p.is_list ? p.count_type : p.type);
+        return n;
+    }
+};
+
+struct Header {
+    Format format = Format::kAscii;
+    std::vector<Element> elements;
+    std::size_t body_offset = 0;  // byte offset of the first body byte
+    int body_line = 0;            // line number of the first body line (ascii)
+};
+
+std::string number_text(double value) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.17g", value);
+    return text;
+}
+
+std::vector<std::string_view> split_words(std::string_view line) {
+    std::vector<std::string_view> words;
+    std::size_t i = 0;
+    while (i < line.size()) {
+        while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+        const std::size_t start = i;
+        while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
+        if (i > start) words.push_back(line.substr(start, i - start));
+    }
+    return words;
+}
+
+Header parse_header(const fs::path& path, const std::string& data) {
+    Header header;
+    std::size_t pos = 0;
+    int line_no = 0;
+    bool have_format = false;
+    bool done = false;
+    // Check the magic first: a binary file without newlines would otherwise only be reported as
+    // "no end_header".
+    if (data.compare(0, 4, "ply\n") != 0 && data.compare(0, 5, "ply\r\n") != 0) {
+        fail(path, "line 1", "not a PLY file (the first line must be 'ply')");
+    }
+    while (!done) {
+        if (pos >= data.size()) fail(path, "header", "ends without an 'end_header' line");
+        std::size_t eol = data.find('\n', pos);
+        if (eol == std::string::npos) {
+            fail(path, "line " + std::to_string(line_no + 1),
+                 "header ends without an 'end_header' line");
+        }
+        std::string_view line(data.data() + pos, eol - pos);
+        if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+        ++line_no;
+        pos = eol + 1;
+        const std::string where = "line " + std::to_string(line_no);
+        if (line_no == 1) {
+            if (line != "ply") fail(path, where, "not a PLY file (first line must be 'ply')");
+            continue;
+        }
+        const auto words = split_words(line);
+        if (words.empty()) continue;
+        const std::string_view key = words[0];
+        if (key == "comment" || key == "obj_info") continue;
+        if (key == "format") {
+            if (words.size() != 3) fail(path, where, "expected 'format <type> 1.0'");
+            if (words[1] == "ascii") {
+                header.format = Format::kAscii;
+            } else if (words[1] == "binary_little_endian") {
+                header.format = Format::kBinaryLittle;
+            } else if (words[1] == "binary_big_endian") {
+                header.format = Format::kBinaryBig;
+            } else {
+                fail(path, where,
+                     "unknown format '" + std::string(words[1]) +
+                         "' (expected ascii, binary_little_endian or "
+                         "binary_big_endian)");
+            }
+            have_format = true;
+        } else if (key == "element") {
+            if (words.size() != 3) fail(path, where, "expected 'element <name> <count>'");
+            Element e;
+            e.name = std::string(words[1]);
+            e.header_line = line_no;
+            const auto c = words[2];
+            const auto r = std::from_chars(c.data(), c.data() + c.size(), e.count);
+            if (r.ec != std::errc() || r.ptr != c.data() + c.size()) {
+                fail(path, where,
+                     "element count '" + std::string(c) + "' is not a non-negative integer");
+            }
+            header.elements.push_back(std::move(e));
+        } else if (key == "property") {
+            if (header.elements.empty()) fail(path, where, "property before any element");
+            Property p;
+            if (words.size() >= 2 && words[1] == "list") {
+                if (words.size() != 5) {
+                    fail(path, where, "expected 'property list <count type> <item type> <name>'");
+                }
+                p.is_list = true;
+                if (!parse_scalar_type(words[2], &p.count_type) || !is_integer(p.count_type)) {
+                    fail(path, where,
+                         "list count type '" + std::string(words[2]) + "' is not an integer type");
+                }
+                if (!parse_scalar_type(words[3], &p.type)) {
+                    fail(path, where, "unknown property type '" + std::string(words[3]) + "'");
+                }
+                p.name = std::string(words[4]);
+            } else {
+                if (words.size() != 3) fail(path, where, "expected 'property <type> <name>'");
+                if (!parse_scalar_type(words[1], &p.type)) {
+                    fail(path, where, "unknown property type '" + std::string(words[1]) + "'");
+                }
+                p.name = std::string(words[2]);
+            }
+            header.elements.back().properties.push_back(std::move(p));
+        } else if (key == "end_header") {
+            done = true;
+        } else {
+            fail(path, where, "unknown header keyword '" + std::string(key) + "'");
+        }
+    }
+    if (!have_format) fail(path, "header", "has no 'format' line");
+    header.body_offset = pos;
+    header.body_line = line_no + 1;
+
+    // Check every declared count against the bytes that follow, before anything is allocated.
+    const std::size_t body_bytes = data.size() - header.body_offset;
+    std::size_t needed = 0;
+    for (const auto& e : header.elements) {
+        if (e.count == 0) continue;
+        const std::string where = "line " + std::to_string(e.header_line);
+        if (e.properties.empty()) {
+            fail(path, where,
+                 "element '" + e.name + "' has " + std::to_string(e.count) +
+                     " entries but no "
+                     "properties");
+        }
+        // Binary: the fixed part of each entry; ascii: one character plus one separator per value.
+        const std::size_t per_entry =
+            header.format == Format::kAscii ? 2 * e.properties.size() : e.min_binary_size();
+        const std::size_t remaining = body_bytes - std::min(needed, body_bytes);
+        // The last ascii value needs no separator, hence the +1.
+        const std::size_t slack = header.format == Format::kAscii ? 1 : 0;
+        if (e.count > (remaining + slack) / per_entry) {
+            fail(path, where,
+                 "header declares " + std::to_string(e.count) + " '" + e.name +
+                     "' entries (at least " + std::to_string(per_entry) + " bytes each) but only " +
+                     std::to_string(remaining) +
+                     " bytes of data remain: truncated file or corrupt header");
+        }
+        needed += static_cast<std::size_t>(e.count) * per_entry;
+    }
+    return header;
+}
+
+/// Bounds-checked reader of binary PLY values.
+class BinaryReader {
+  public:
+    BinaryReader(const fs::path& path, const std::string& data, std::size_t offset, bool big_endian)
+        : path_(path), data_(data), pos_(offset), big_endian_(big_endian) {}
+
+    double scalar(Scalar type) {
+        const std::size_t n = scalar_size(type);
+        if (data_.size() - pos_ < n) {
+            fail(path_, "byte offset " + std::to_string(pos_),
+                 "file is truncated (needed " + std::to_string(n) + " more bytes)");
+        }
+        unsigned char bytes[8];
+        std::memcpy(bytes, data_.data() + pos_, n);
+        pos_ += n;
+        if (big_endian_ != kHostBigEndian) {
+            for (std::size_t i = 0; i < n / 2; ++i) std::swap(bytes[i], bytes[n - 1 - i]);
+        }
+        switch (type) {
+            case Scalar::kInt8:
+                return static_cast<double>(load<std::int8_t>(bytes));
+            case Scalar::kUint8:
+                return static_cast<double>(load<std::uint8_t>(bytes));
+            case Scalar::kInt16:
+                return static_cast<double>(load<std::int16_t>(bytes));
+            case Scalar::kUint16:
+                return static_cast<double>(load<std::uint16_t>(bytes));
+            case Scalar::kInt32:
+                return static_cast<double>(load<std::int32_t>(bytes));
+            case Scalar::kUint32:
+                return static_cast<double>(load<std::uint32_t>(bytes));
+            case Scalar::kFloat32:
+                return static_cast<double>(load<float>(bytes));
+            case Scalar::kFloat64:
+                return load<double>(bytes);
+        }
+        return 0.0;
+    }
+
+    std::string where() const { return "byte offset " + std::to_string(pos_); }
+
+  private:
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    static constexpr bool kHostBigEndian = true;
+#else
+    static constexpr bool kHostBigEndian = false;
+#endif
+
+    template <typename T>
+    static T load(const unsigned char* bytes) {
+        T v;
+        std::memcpy(&v, bytes, sizeof(T));
+        return v;
+    }
+
+    const fs::path& path_;
+    const std::string& data_;
+    std::size_t pos_;
+    bool big_endian_;
+};
+
+/// Tokenizer of ascii PLY bodies that tracks line numbers for messages.
+class AsciiReader {
+  public:
+    AsciiReader(const fs::path& path, const std::string& data, std::size_t offset, int line)
+        : path_(path), data_(data), pos_(offset), line_(line) {}
+
+    double scalar(Scalar type) {
+        while (pos_ < data_.size() && std::isspace(static_cast<unsigned char>(data_[pos_]))) {
+            if (data_[pos_] == '\n') ++line_;
+            ++pos_;
+        }
+        if (pos_ >= data_.size()) fail(path_, where(), "file is truncated (expected a value)");
+        const std::size_t start = pos_;
+        while (pos_ < data_.size() && !std::isspace(static_cast<unsigned char>(data_[pos_]))) {
+            ++pos_;
+        }
+        const char* first = data_.data() + start;
+        const char* last = data_.data() + pos_;
+        if (*first == '+') ++first;  // from_chars rejects a leading '+'
+        double value = 0.0;
+        const auto r = std::from_chars(first, last, value);
+        if (r.ec != std::errc() || r.ptr != last || first == last) {
+            fail(path_, where(),
+                 "'" + std::string(data_.data() + start, pos_ - start) + "' is not a number");
+        }
+        if (is_integer(type) && value != std::floor(value)) {
+            fail(path_, where(),
+                 "'" + std::string(data_.data() + start, pos_ - start) +
+                     "' is not an integer but the property is declared as an integer type");
+        }
+        return value;
+    }
+
+    std::string where() const { return "line " + std::to_string(line_); }
+
+  private:
+    const fs::path& path_;
+    const std::string& data_;
+    std::size_t pos_;
+    int line_;
+};
+
+struct ReadResult {
+    TriangleMesh mesh;
+    bool has_vertex_element = false;
+};
+
+/// Reads a list length and checks it is a sane non-negative integer.
+template <typename Reader>
+std::size_t read_list_count(Reader& reader, const Property& p, const fs::path& path) {
+    const double c = reader.scalar(p.count_type);
+    if (!(c >= 0.0) || c > 1e9) {
+        fail(path, reader.where(),
+             "invalid list length " + number_text(c) + " for property '" + p.name + "'");
+    }
+    return static_cast<std::size_t>(c);
+}
+
+template <typename Reader>
+void read_body(Reader& reader, const Header& header, const fs::path& path, bool want_faces,
+               ReadResult* result) {
+    TriangleMesh& mesh = result->mesh;
+    std::uint64_t face_count = 0;
+    bool have_observed = false;
+    std::vector<double> polygon;
+    for (const Element& e : header.elements) {
+        const std::string element_where =
+            "element '" + e.name + "' (header line " + std::to_string(e.header_line) + ")";
+        if (e.name == "vertex") {
+            if (result->has_vertex_element) fail(path, element_where, "second vertex element");
+            result->has_vertex_element = true;
+            int xyz_index[3] = {-1, -1, -1};
+            for (std::size_t i = 0; i < e.properties.size(); ++i) {
+                const Property& p = e.properties[i];
+                for (int axis = 0; axis < 3; ++axis) {
+                    if (p.name == std::string(1, static_cast<char>('x' + axis))) {
+                        if (p.is_list)
+                            fail(path, element_where, "property " + p.name + " is a list");
+                        xyz_index[axis] = static_cast<int>(i);
+                    }
+                }
+            }
+            if (xyz_index[0] < 0 || xyz_index[1] < 0 || xyz_index[2] < 0) {
+                fail(path, element_where, "vertex element lacks an x, y or z property");
+            }
+            mesh.vertices.resize(static_cast<std::size_t>(e.count));
+            for (std::uint64_t v = 0; v < e.count; ++v) {
+                Eigen::Vector3f& out = mesh.vertices[static_cast<std::size_t>(v)];
+                for (std::size_t i = 0; i < e.properties.size(); ++i) {
+                    const Property& p = e.properties[i];
+                    if (p.is_list) {
+                        const std::size_t n = read_list_count(reader, p, path);
+                        for (std::size_t k = 0; k < n; ++k) reader.scalar(p.type);
+                        continue;
+                    }
+                    const double value = reader.scalar(p.type);
+                    for (int axis = 0; axis < 3; ++axis) {
+                        if (static_cast<int>(i) == xyz_index[axis]) {
+                            out[axis] = static_cast<float>(value);
+                        }
+                    }
+                }
+            }
+            if (!want_faces) return;  // points only: nothing after the vertices matters
+        } else if (e.name == "face" && want_faces) {
+            if (face_count > 0) fail(path, element_where, "second face element");
+            int index_property = -1;
+            int observed_property = -1;
+            for (std::size_t i = 0; i < e.properties.size(); ++i) {
+                const Property& p = e.properties[i];
+                if (p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index")) {
+                    index_property = static_cast<int>(i);
+                } else if (!p.is_list && p.name == "observed") {
+                    observed_property = static_cast<int>(i);
+                }
+            }
+            if (index_property < 0 && e.count > 0) {
+                fail(path, element_where, "face element lacks a 'vertex_indices' list property");
+            }
+            face_count = e.count;
+            have_observed = observed_property >= 0;
+            // Most meshes are all triangles; polygons add more, which push_back handles.
+            mesh.triangles.reserve(static_cast<std::size_t>(e.count));
+            if (have_observed) mesh.face_observed.reserve(static_cast<std::size_t>(e.count));
+            for (std::uint64_t f = 0; f < e.count; ++f) {
+                polygon.clear();
+                double observed = 0.0;
+                std::string polygon_where;
+                for (std::size_t i = 0; i < e.properties.size(); ++i) {
+                    const Property& p = e.properties[i];
+                    if (static_cast<int>(i) == index_property) {
+                        polygon_where = reader.where();
+                        const std::size_t n = read_list_count(reader, p, path);
+                        for (std::size_t k = 0; k < n; ++k) {
+                            const double idx = reader.scalar(p.type);
+                            if (!(idx >= 0.0) || idx != std::floor(idx) ||
+                                idx > static_cast<double>(std::numeric_limits<int>::max())) {
+                                fail(path, reader.where(),
+                                     "face " + std::to_string(f) + " has invalid vertex index " +
+                                         number_text(idx));
+                            }
+                            polygon.push_back(idx);
+                        }
+                    } else if (p.is_list) {
+                        const std::size_t n = read_list_count(reader, p, path);
+                        for (std::size_t k = 0; k < n; ++k) reader.scalar(p.type);
+                    } else {
+                        const double value = reader.scalar(p.type);
+                        if (static_cast<int>(i) == observed_property) observed = value;
+                    }
+                }
+                // Fan triangulation: (0, k, k+1). Faces with fewer than 3 corners carry no area
+                // and are dropped.
+                for (std::size_t k = 1; k + 1 < polygon.size(); ++k) {
+                    mesh.triangles.emplace_back(static_cast<int>(polygon[0]),
+                                                static_cast<int>(polygon[k]),
+                                                static_cast<int>(polygon[k + 1]));
+                    if (have_observed) mesh.face_observed.push_back(observed != 0.0 ? 1 : 0);
+                }
+            }
+        } else {
+            // Unknown element (or faces when only points are wanted): read past it.
+            for (std::uint64_t k = 0; k < e.count; ++k) {
+                for (const Property& p : e.properties) {
+                    if (p.is_list) {
+                        const std::size_t n = read_list_count(reader, p, path);
+                        for (std::size_t j = 0; j < n; ++j) reader.scalar(p.type);
+                    } else {
+                        reader.scalar(p.type);
+                    }
+                }
+            }
+        }
+    }
+}
+
+ReadResult read_ply(const fs::path& path, bool want_faces) {
+    const std::string data = read_whole_file(path);
+    const Header header = parse_header(path, data);
+    ReadResult result;
+    if (header.format == Format::kAscii) {
+        AsciiReader reader(path, data, header.body_offset, header.body_line);
+        read_body(reader, header, path, want_faces, &result);
+    } else {
+        BinaryReader reader(path, data, header.body_offset, header.format == Format::kBinaryBig);
+        read_body(reader, header, path, want_faces, &result);
+    }
+    if (!result.has_vertex_element) fail(path, "header", "has no 'vertex' element");
+    const std::size_t nv = result.mesh.vertices.size();
+    for (std::size_t t = 0; t < result.mesh.triangles.size(); ++t) {
+        for (int k = 0; k < 3; ++k) {
+            if (static_cast<std::size_t>(result.mesh.triangles[t][k]) >= nv) {
+                fail(path, "triangle " + std::to_string(t),
+                     "vertex index " + std::to_string(result.mesh.triangles[t][k]) +
+                         " is out of range (the file has " + std::to_string(nv) + " vertices)");
+            }
+        }
+    }
+    return result;
+}
+
+/// Appends `value` in little-endian byte order at `out` and returns the next position.
+template <typename T>
+char* put_le(char* out, T value) {
+    std::memcpy(out, &value, sizeof(T));
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    for (std::size_t i = 0; i < sizeof(T) / 2; ++i) std::swap(out[i], out[sizeof(T) - 1 - i]);
+#endif
+    return out + sizeof(T);
+}
+
+std::string header_text(std::size_t vertex_count, std::size_t face_count, bool with_faces,
+                        bool with_observed) {
+    std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by ShineVDB\n";
+    h += "element vertex " + std::to_string(vertex_count) + "\n";
+    h += "property float x\nproperty float y\nproperty float z\n";
+    if (with_faces) {
+        h += "element face " + std::to_string(face_count) + "\n";
+        h += "property list uchar int vertex_indices\n";
+        if (with_observed) h += "property uchar observed\n";
+    }
+    h += "end_header\n";
+    return h;
+}
+
+char* put_vertices(char* out, const std::vector<Eigen::Vector3f>& vertices) {
+    for (const auto& v : vertices) {
+        out = put_le(out, v.x());
+        out = put_le(out, v.y());
+        out = put_le(out, v.z());
+    }
+    return out;
+}
+
+}  // namespace
+}  // namespace ply_internal
+
+TriangleMesh read_ply_mesh(const fs::path& path) {
+    return ply_internal::read_ply(path, /*want_faces=*/true).mesh;
+}
+
+std::vector<Eigen::Vector3f> read_ply_points(const fs::path& path) {
+    return std::move(ply_internal::read_ply(path, /*want_faces=*/false).mesh.vertices);
+}
+
+void write_ply_mesh(const fs::path& path, const TriangleMesh& mesh) {
+    using namespace ply_internal;
+    const std::size_t nv = mesh.vertices.size();
+    const std::size_t nf = mesh.triangles.size();
+    const bool with_observed = !mesh.face_observed.empty();
+    if (with_observed && mesh.face_observed.size() != nf) {
+        throw DataError("cannot write '" + path.string() + "': face_observed has " +
+                        std::to_string(mesh.face_observed.size()) + " flags for " +
+                        std::to_string(nf) + " triangles (must be empty or one per triangle)");
+    }
+    for (std::size_t t = 0; t < nf; ++t) {
+        for (int k = 0; k < 3; ++k) {
+            const int idx = mesh.triangles[t][k];
+            if (idx < 0 || static_cast<std::size_t>(idx) >= nv) {
+                throw DataError("cannot write '" + path.string() + "': triangle " +
+                                std::to_string(t) + " refers to vertex " + std::to_string(idx) +
+                                " but the mesh has " + std::to_string(nv) + " vertices");
+            }
+        }
+    }
+    const std::string header = header_text(nv, nf, /*with_faces=*/true, with_observed);
+    const std::size_t face_bytes = 1 + 3 * sizeof(std::int32_t) + (with_observed ? 1 : 0);
+    std::string buffer(header.size() + nv * 3 * sizeof(float) + nf * face_bytes, '\0');
+    std::memcpy(buffer.data(), header.data(), header.size());
+    char* out = put_vertices(buffer.data() + header.size(), mesh.vertices);
+    for (std::size_t t = 0; t < nf; ++t) {
+        *out++ = 3;
+        for (int k = 0; k < 3; ++k) out = put_le<std::int32_t>(out, mesh.triangles[t][k]);
+        if (with_observed) *out++ = static_cast<char>(mesh.face_observed[t] != 0 ? 1 : 0);
+    }
+    write_stream_atomically(path, [&](std::ostream& stream) {
+        stream.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    });
+}
+
+void write_ply_points(const fs::path& path, const std::vector<Eigen::Vector3f>& points) {
+    using namespace ply_internal;
+    const std::string header = header_text(points.size(), 0, /*with_faces=*/false, false);
+    std::string buffer(header.size() + points.size() * 3 * sizeof(float), '\0');
+    std::memcpy(buffer.data(), header.data(), header.size());
+    put_vertices(buffer.data() + header.size(), points);
+    write_stream_atomically(path, [&](std::ostream& stream) {
+        stream.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    });
+}
+
+}  // namespace shine

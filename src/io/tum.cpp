@@ -1,0 +1,123 @@
+// TUM trajectory files: "timestamp tx ty tz qx qy qz qw" per line, '#' comments.
+#include "shine/io/tum.hpp"
+
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <string_view>
+
+#include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
+
+namespace shine {
+namespace fs = std::filesystem;
+
+namespace tum_internal {
+namespace {
+
+[[noreturn]] void fail(const fs::path& path, const std::string& where, const std::string& what) {
+    throw IoError("TUM trajectory '" + path.string() + "'" + (where.empty() ? "" : ", " + where) +
+                  ": " + what);
+}
+
+std::string read_whole_file(const fs::path& path) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) fail(path, "", "file does not exist");
+    if (fs::is_directory(path, ec)) fail(path, "", "is a directory, expected a file");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) fail(path, "", "cannot open for reading (permissions?)");
+    std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (data.empty()) fail(path, "", "file is empty");
+    return data;
+}
+
+}  // namespace
+}  // namespace tum_internal
+
+std::vector<StampedPose> read_tum_poses(const fs::path& path) {
+    using namespace tum_internal;
+    const std::string data = read_whole_file(path);
+    std::vector<StampedPose> poses;
+    std::size_t pos = 0;
+    int line_no = 0;
+    double v[8];
+    while (pos < data.size()) {
+        std::size_t eol = data.find('\n', pos);
+        if (eol == std::string::npos) eol = data.size();
+        const std::string_view line(data.data() + pos, eol - pos);
+        pos = eol + 1;
+        ++line_no;
+        const std::string where = "line " + std::to_string(line_no);
+        std::size_t i = 0;
+        int count = 0;
+        bool comment = false;
+        while (i < line.size()) {
+            while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+            if (i == line.size()) break;
+            if (line[i] == '#') {
+                if (count != 0) fail(path, where, "comment after data");
+                comment = true;
+                break;
+            }
+            const std::size_t start = i;
+            // TUM files written by some tools separate fields with commas.
+            while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i])) &&
+                   line[i] != ',') {
+                ++i;
+            }
+            const std::string_view word = line.substr(start, i - start);
+            if (i < line.size() && line[i] == ',') ++i;
+            if (word.empty()) continue;
+            if (count == 8) fail(path, where, "more than 8 fields (expected t x y z qx qy qz qw)");
+            const char* first = word.data();
+            const char* last = word.data() + word.size();
+            if (*first == '+') ++first;
+            const auto r = std::from_chars(first, last, v[count]);
+            if (first == last || r.ec != std::errc() || r.ptr != last) {
+                fail(path, where, "'" + std::string(word) + "' is not a number");
+            }
+            ++count;
+        }
+        if (comment || count == 0) continue;
+        if (count != 8) {
+            fail(path, where,
+                 "expected 8 fields (t x y z qx qy qz qw), found " + std::to_string(count) +
+                     (count == 12 ? " (a KITTI pose file? use pose_format kitti)" : ""));
+        }
+        for (double x : v) {
+            if (!std::isfinite(x)) fail(path, where, "contains a non-finite value");
+        }
+        // TUM order is qx qy qz qw; Eigen's constructor takes w first.
+        Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+        const double norm = q.norm();
+        if (norm < 1e-9) fail(path, where, "quaternion is zero");
+        q.coeffs() /= norm;
+        StampedPose p;
+        p.timestamp_s = v[0];
+        p.T_world_sensor.linear() = q.toRotationMatrix();
+        p.T_world_sensor.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
+        poses.push_back(p);
+    }
+    if (poses.empty()) fail(path, "", "contains no poses");
+    return poses;
+}
+
+void write_tum_poses(const fs::path& path, const std::vector<StampedPose>& poses) {
+    std::string text = "# timestamp tx ty tz qx qy qz qw\n";
+    char line[512];
+    for (const auto& p : poses) {
+        const Eigen::Quaterniond q(p.T_world_sensor.rotation());
+        const Eigen::Vector3d t = p.T_world_sensor.translation();
+        std::snprintf(line, sizeof(line), "%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n",
+                      p.timestamp_s, t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+        text += line;
+    }
+    write_stream_atomically(path, [&](std::ostream& stream) {
+        stream.write(text.data(), static_cast<std::streamsize>(text.size()));
+    });
+}
+
+}  // namespace shine
