@@ -94,12 +94,20 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
     for (int level = 0; level < config_.num_levels; ++level) {
         // Collect the distinct cells first so that each corner is visited once per cell.
         const double inv = 1.0 / cell_size_m(level);
+        const double margin_m = config_.allocation_margin_ratio * config_.leaf_size_m;
         std::vector<Eigen::Vector3i> cells;
-        cells.reserve(points_map.size());
+        cells.reserve(points_map.size() * 2);
         for (const auto& p : points_map) {
-            cells.emplace_back(static_cast<int>(std::floor(p.x() * inv)),
-                               static_cast<int>(std::floor(p.y() * inv)),
-                               static_cast<int>(std::floor(p.z() * inv)));
+            int lo[3], hi[3];
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = static_cast<int>(std::floor((p[a] - margin_m) * inv));
+                hi[a] = static_cast<int>(std::floor((p[a] + margin_m) * inv));
+            }
+            for (int x = lo[0]; x <= hi[0]; ++x) {
+                for (int y = lo[1]; y <= hi[1]; ++y) {
+                    for (int z = lo[2]; z <= hi[2]; ++z) cells.emplace_back(x, y, z);
+                }
+            }
         }
         std::sort(
             cells.begin(), cells.end(), [](const Eigen::Vector3i& a, const Eigen::Vector3i& b) {

@@ -49,6 +49,8 @@ Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConf
     on_map_grown();
 }
 
+Trainer::~Trainer() = default;
+
 void Trainer::on_map_grown() {
     const std::size_t rows = sdf_.octree.num_corners();
     feature_adam_.resize(rows);

@@ -26,7 +26,11 @@ struct FeatureOctreeConfig {
     int num_levels = 3;        ///< H
     int feature_dim = 8;       ///< L
     float init_std = 0.05f;    ///< features start as N(0, init_std^2)
-    std::uint64_t seed = 42;   ///< initial features depend only on (seed, level, corner)
+    /// Cells are allocated around each point within this margin (as a fraction of the leaf
+    /// size), so that a surface point never lies on the border of the allocated region, where
+    /// the SDF would be cut off.
+    double allocation_margin_ratio = 0.5;
+    std::uint64_t seed = 42;  ///< initial features depend only on (seed, level, corner)
 };
 
 /// Corner rows and interpolation weights of one query point at one level.
@@ -51,8 +55,9 @@ class FeatureOctree {
     /// Cell edge length of `level` in metres: leaf_size_m * 2^level.
     double cell_size_m(int level) const;
 
-    /// Allocates, at every level, the cells containing the points (map frame). Returns the number
-    /// of corners added. Not thread-safe with concurrent queries.
+    /// Allocates, at every level, the cells that the cube of half-size allocation_margin_ratio *
+    /// leaf_size_m around each point (map frame) touches. Returns the number of corners added.
+    /// Not thread-safe with concurrent queries.
     std::size_t allocate_cells(const std::vector<Eigen::Vector3f>& points_map);
 
     /// Finds the cell of `level` containing `point_map`; false if any of its corners is missing.

@@ -39,6 +39,7 @@ struct TrainStepStats {
 class Trainer {
   public:
     Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConfig& sampling);
+    ~Trainer();
 
     /// Call after the octree grew: sizes the optimiser state and gradient buffers.
     void on_map_grown();

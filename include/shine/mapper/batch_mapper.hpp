@@ -1,0 +1,55 @@
+// Batch-mode mapping (paper Sec. III-B): all scans are loaded, the map is allocated around all
+// their points, then features and decoder are optimised jointly on rays drawn from every scan.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+
+#include "shine/io/preprocess.hpp"
+#include "shine/io/scan_sequence.hpp"
+#include "shine/mapper/mapper_config.hpp"
+#include "shine/model/neural_sdf.hpp"
+#include "shine/sampling/ray_set.hpp"
+
+namespace shine {
+
+/// Wall-clock seconds per stage and sizes, for stats.json.
+struct MappingStats {
+    std::size_t frames = 0;
+    std::size_t rays = 0;
+    PreprocessStats preprocess;
+    double load_seconds = 0.0;      ///< reading and preprocessing scans
+    double allocate_seconds = 0.0;  ///< growing the octree
+    double train_seconds = 0.0;
+    std::size_t iterations = 0;
+    double final_bce = 0.0;
+    double final_eikonal = 0.0;
+};
+
+class BatchMapper {
+  public:
+    explicit BatchMapper(const MapperConfig& config);
+    ~BatchMapper();
+
+    /// Preprocesses a scan, moves it to the map frame and allocates the map around it. The first
+    /// scan fixes the map origin (its position rounded to whole kilometres).
+    void add_scan(const Scan& scan);
+
+    /// Runs config.iterations optimisation steps; `on_progress(done, bce)` is called now and then.
+    void train(const std::function<void(std::size_t done, double bce)>& on_progress = {});
+
+    const NeuralSdf& sdf() const { return *sdf_; }
+    NeuralSdf& sdf() { return *sdf_; }
+    const MappingStats& stats() const { return stats_; }
+    const RaySet& rays() const { return rays_; }
+
+  private:
+    MapperConfig config_;
+    std::unique_ptr<NeuralSdf> sdf_;
+    RaySet rays_;
+    MappingStats stats_;
+    bool origin_set_ = false;
+};
+
+}  // namespace shine

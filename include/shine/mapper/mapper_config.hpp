@@ -1,0 +1,44 @@
+// All settings of a mapping run in one struct with the paper's defaults (see DESIGN.md), and
+// their YAML form. Parsing rejects unknown keys and out-of-range values, naming the key.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "shine/bake/level_set_bake.hpp"
+#include "shine/io/preprocess.hpp"
+#include "shine/map/feature_octree.hpp"
+#include "shine/mapper/trainer.hpp"
+#include "shine/mesh/level_set_mesh.hpp"
+#include "shine/model/decoder.hpp"
+#include "shine/sampling/ray_sampler.hpp"
+
+namespace shine {
+
+struct MapperConfig {
+    PreprocessConfig preprocess;
+    FeatureOctreeConfig octree;
+    DecoderConfig decoder;
+    SamplingConfig sampling;
+    TrainerConfig trainer;
+    int iterations = 6000;                   ///< batch-mode optimisation steps
+    float final_learning_rate_ratio = 0.1f;  ///< lr decays to this fraction (cosine) by the end
+    BakeConfig bake;
+    MeshConfig mesh;
+    int threads = 0;          ///< 0: all hardware threads
+    std::uint64_t seed = 42;  ///< one seed for features, decoder and sampling
+
+    /// Copies feature_dim/seed into the sub-configs that repeat them, and checks ranges.
+    void finalize();
+};
+
+/// Reads `path` (YAML) over the defaults in `config`. Throws ConfigError naming the file and key.
+void load_config_yaml(const std::filesystem::path& path, MapperConfig& config);
+
+/// The configuration as YAML (stored in map.vdb and accepted by load_config_yaml).
+std::string config_to_yaml(const MapperConfig& config);
+
+/// Parses YAML text (as produced by config_to_yaml) over `config`; `source` names it in errors.
+void parse_config_yaml(const std::string& text, const std::string& source, MapperConfig& config);
+
+}  // namespace shine

@@ -1,0 +1,88 @@
+// A spinning multi-beam LiDAR (Velodyne HDL-64E-like) ray-cast against a triangle mesh, and the
+// whole example-sequence simulation: street scene -> drive -> scans in the KITTI layout.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "shine/sim/drive_trajectory.hpp"
+#include "shine/sim/ray_caster.hpp"
+#include "shine/sim/street_scene.hpp"
+
+namespace shine::sim {
+
+/// Sensor model. Beams are evenly spaced in elevation from elevation_max_deg (beam 0) down to
+/// elevation_min_deg; azimuths are evenly spaced over a full turn starting at +x (counter-
+/// clockwise seen from above). Sensor frame: x forward, y left, z up.
+struct LidarConfig {
+    int num_beams = 64;
+    double elevation_max_deg = 2.0;
+    double elevation_min_deg = -24.8;
+    int azimuth_steps = 1800;          ///< 0.2 deg resolution
+    double min_range_m = 1.0;          ///< closer returns are dropped
+    double max_range_m = 80.0;         ///< farther surfaces give no return
+    double range_noise_sigma_m = 0.0;  ///< Gaussian noise added to each range
+};
+
+/// Throws ConfigError naming the field if a value is out of range.
+void validate(const LidarConfig& config);
+
+/// Unit direction of ray (beam, azimuth_step) in the sensor frame.
+Eigen::Vector3d lidar_ray_direction(const LidarConfig& config, int beam, int azimuth_step);
+
+/// One simulated scan. Points are in the sensor frame, in ray order (beam-major: all azimuths of
+/// beam 0, then beam 1, ...), misses and out-of-range returns omitted.
+struct LidarScan {
+    std::vector<Eigen::Vector3f> points_sensor;
+    std::vector<std::int32_t> triangle_ids;  ///< the triangle each point's ray hit
+};
+
+/// Casts all rays of one scan from pose T_world_sensor, in parallel. The range noise of ray i is
+/// drawn from a generator seeded by (noise_seed, i), so the scan is identical for any thread
+/// count and schedule.
+LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
+                        const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed);
+
+/// Everything `shine simulate` does.
+struct SimulationConfig {
+    std::uint64_t seed = 1;  ///< scene layout, trajectory phases and noise all derive from it
+    int num_frames = 50;
+    double scene_margin_m = 70.0;  ///< street continues this far before the first / after the
+                                   ///< last pose, so every scan sees buildings ahead and behind
+    StreetSceneConfig scene;       ///< seed, start_x_m and length_m are set by simulate_sequence
+    DriveTrajectoryConfig trajectory;
+    LidarConfig lidar;
+    bool show_progress = true;
+};
+
+/// Throws ConfigError naming the field if any value (including nested configs) is out of range.
+void validate(const SimulationConfig& config);
+
+/// What simulate_sequence produced.
+struct SimulationSummary {
+    int num_frames = 0;
+    std::size_t total_points = 0;
+    std::size_t min_points_per_scan = 0;
+    std::size_t max_points_per_scan = 0;
+    std::size_t num_triangles = 0;
+    std::size_t num_observed_triangles = 0;
+    double seconds = 0.0;
+};
+
+/// Builds the street, drives the sensor down it and writes, in the KITTI odometry layout:
+///   out_dir/velodyne/NNNNNN.bin   float32 x y z intensity(0), sensor frame
+///   out_dir/poses.txt             T_world_sensor per frame, 3x4 row-major
+///   out_dir/gt_mesh.ply           the whole scene; face property `observed` = 1 for every
+///                                 triangle hit by at least one ray of any frame
+///   out_dir/simulation.json, README.txt   the parameters
+/// Stale velodyne/NNNNNN.bin files beyond num_frames (from an earlier, longer run) are removed so
+/// that scans and poses stay consistent. Throws ConfigError for invalid configs and IoError when a
+/// file cannot be written.
+SimulationSummary simulate_sequence(const SimulationConfig& config,
+                                    const std::filesystem::path& out_dir);
+
+}  // namespace shine::sim

@@ -1,0 +1,84 @@
+#include "shine/mapper/batch_mapper.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "shine/core/error.hpp"
+#include "shine/mapper/trainer.hpp"
+
+namespace shine {
+namespace {
+double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+}  // namespace
+
+BatchMapper::BatchMapper(const MapperConfig& config) : config_(config) {
+    config_.finalize();
+    sdf_ = std::make_unique<NeuralSdf>(config_.octree, config_.decoder);
+}
+
+BatchMapper::~BatchMapper() = default;
+
+void BatchMapper::add_scan(const Scan& scan) {
+    auto start = std::chrono::steady_clock::now();
+    PreprocessStats pre;
+    const std::vector<Eigen::Vector3f> points_sensor =
+        preprocess_scan(scan.points_sensor, config_.preprocess, scan.source, &pre);
+    stats_.preprocess += pre;
+    if (!origin_set_) {
+        // Far-away (UTM-like) coordinates lose float precision; the map frame is the world frame
+        // shifted by whole kilometres so that coordinates inside the map stay small.
+        const Eigen::Vector3d t = scan.T_world_sensor.translation();
+        sdf_->origin_world_m = (t / 1000.0).array().round().matrix() * 1000.0;
+        origin_set_ = true;
+    }
+    Eigen::Isometry3d T_map_sensor = scan.T_world_sensor;
+    T_map_sensor.translation() -= sdf_->origin_world_m;
+    std::vector<Eigen::Vector3f> points_map;
+    points_map.reserve(points_sensor.size());
+    for (const auto& p : points_sensor) {
+        points_map.push_back((T_map_sensor * p.cast<double>()).cast<float>());
+    }
+    const Eigen::Vector3f origin_map = T_map_sensor.translation().cast<float>();
+    rays_.add_scan(origin_map, points_map);
+    stats_.load_seconds += seconds_since(start);
+
+    start = std::chrono::steady_clock::now();
+    sdf_->octree.allocate_cells(points_map);
+    stats_.allocate_seconds += seconds_since(start);
+    ++stats_.frames;
+    stats_.rays = rays_.num_rays();
+}
+
+void BatchMapper::train(const std::function<void(std::size_t, double)>& on_progress) {
+    if (rays_.num_rays() == 0) {
+        throw DataError("no points left to map after preprocessing (check the range limits)");
+    }
+    const auto start = std::chrono::steady_clock::now();
+    Trainer trainer(*sdf_, config_.trainer, config_.sampling);
+    const float lr0 = config_.trainer.feature_adam.learning_rate;
+    const float dlr0 = config_.trainer.decoder_adam.learning_rate;
+    const int iterations = config_.iterations;
+    TrainStepStats last;
+    double bce_avg = 0.0;
+    for (int it = 0; it < iterations; ++it) {
+        // Cosine decay from lr to final_learning_rate_ratio * lr: large steps place the surface,
+        // small ones refine it.
+        const double progress = iterations > 1 ? static_cast<double>(it) / (iterations - 1) : 1.0;
+        const double ratio =
+            config_.final_learning_rate_ratio +
+            (1.0 - config_.final_learning_rate_ratio) * 0.5 * (1.0 + std::cos(M_PI * progress));
+        trainer.set_feature_learning_rate(static_cast<float>(lr0 * ratio));
+        trainer.set_decoder_learning_rate(static_cast<float>(dlr0 * ratio));
+        last = trainer.step(rays_, 0, rays_.num_rays(), static_cast<std::uint64_t>(it));
+        bce_avg = it == 0 ? last.bce : 0.98 * bce_avg + 0.02 * last.bce;
+        if (on_progress && (it % 50 == 0 || it + 1 == iterations)) on_progress(it + 1, bce_avg);
+    }
+    stats_.iterations += static_cast<std::size_t>(iterations);
+    stats_.final_bce = last.bce;
+    stats_.final_eikonal = last.eikonal;
+    stats_.train_seconds += seconds_since(start);
+}
+
+}  // namespace shine

@@ -1,0 +1,142 @@
+#include "shine/bake/level_set_bake.hpp"
+
+#include <openvdb/tools/SignedFloodFill.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "shine/core/error.hpp"
+#include "shine/model/feature_encoding.hpp"
+
+namespace shine {
+
+double resolve_bake_voxel_size_m(const BakeConfig& config, double leaf_size_m) {
+    return config.voxel_size_m > 0.0 ? config.voxel_size_m : 0.5 * leaf_size_m;
+}
+
+openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& config,
+                                       BakeStats* stats) {
+    openvdb::initialize();
+    const double voxel_m = resolve_bake_voxel_size_m(config, sdf.octree.config().leaf_size_m);
+    if (!(voxel_m > 0.0) || !std::isfinite(voxel_m)) {
+        throw ConfigError("bake voxel_size_m must be positive, got " + std::to_string(voxel_m));
+    }
+    if (!(config.half_width_voxels >= 1.0f)) {
+        throw ConfigError("bake half_width_voxels must be at least 1");
+    }
+    const float background_m = static_cast<float>(config.half_width_voxels * voxel_m);
+    const double leaf_m = sdf.octree.config().leaf_size_m;
+    const std::vector<Eigen::Vector3i> cells = sdf.octree.leaf_cells();
+
+    // Per block of cells, evaluate the voxels whose sample point lies inside the cell: voxel
+    // indices i with cell*leaf <= i*voxel < (cell+1)*leaf, so every voxel belongs to one cell.
+    struct Value {
+        openvdb::Coord ijk;
+        float sdf_m;
+    };
+    constexpr std::size_t kBlock = 256;
+    const std::size_t num_blocks = (cells.size() + kBlock - 1) / kBlock;
+    std::vector<std::vector<Value>> block_values(num_blocks);
+    const int dim = sdf.octree.feature_dim();
+    tbb::parallel_for(std::size_t(0), num_blocks, [&](std::size_t block) {
+        CellLookup lookup(sdf.octree);
+        DecoderWorkspace ws;
+        sdf.decoder.prepare(ws);
+        EncodedPoint encoded;
+        float feature[kMaxFeatureDim];
+        auto& values = block_values[block];
+        const std::size_t end = std::min(cells.size(), (block + 1) * kBlock);
+        for (std::size_t c = block * kBlock; c < end; ++c) {
+            int lo[3], hi[3];
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = static_cast<int>(std::ceil(cells[c][a] * leaf_m / voxel_m - 1e-9));
+                hi[a] = static_cast<int>(std::ceil((cells[c][a] + 1) * leaf_m / voxel_m - 1e-9));
+            }
+            for (int i = lo[0]; i < hi[0]; ++i) {
+                for (int j = lo[1]; j < hi[1]; ++j) {
+                    for (int k = lo[2]; k < hi[2]; ++k) {
+                        const Eigen::Vector3f p(static_cast<float>(i * voxel_m),
+                                                static_cast<float>(j * voxel_m),
+                                                static_cast<float>(k * voxel_m));
+                        encode_point(lookup, sdf.octree, p, false, encoded);
+                        if (!encoded.has_level0) continue;
+                        gather_feature(encoded, sdf.octree.features().data(), dim, feature);
+                        values.push_back(
+                            {openvdb::Coord(i, j, k), sdf.decoder.forward(feature, ws)});
+                    }
+                }
+            }
+        }
+    });
+
+    auto grid = openvdb::FloatGrid::create(background_m);
+    auto transform = openvdb::math::Transform::createLinearTransform(voxel_m);
+    transform->postTranslate(
+        openvdb::Vec3d(sdf.origin_world_m.x(), sdf.origin_world_m.y(), sdf.origin_world_m.z()));
+    grid->setTransform(transform);
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->setName("surface");
+    std::size_t evaluated = 0;
+    openvdb::MaskGrid evaluated_mask;
+    {
+        auto accessor = grid->getAccessor();
+        auto mask = evaluated_mask.getAccessor();
+        for (const auto& values : block_values) {
+            evaluated += values.size();
+            for (const auto& v : values) {
+                mask.setValueOn(v.ijk);
+                if (std::abs(v.sdf_m) < background_m) {
+                    accessor.setValueOn(v.ijk, v.sdf_m);
+                } else {
+                    accessor.setValueOff(v.ijk, v.sdf_m > 0.0f ? background_m : -background_m);
+                }
+            }
+        }
+    }
+    openvdb::tools::signedFloodFill(grid->tree());
+    // Mesh extraction (OpenVDB's and Blender's) makes a polygon wherever an active voxel and a
+    // neighbour differ in sign. Outside the evaluated region the flood fill's sign is a guess, and
+    // a wrong guess next to the band (e.g. below an observed ground strip) would add a false
+    // surface. So every unevaluated neighbour of the band takes the sign its band neighbours
+    // agree on (their sum): only where the surface itself leaves the observed region does a
+    // crossing remain, a skirt of at most one voxel.
+    {
+        std::vector<std::pair<openvdb::Coord, float>> shell;
+        auto mask = evaluated_mask.getConstAccessor();
+        for (auto it = grid->cbeginValueOn(); it; ++it) {
+            const openvdb::Coord c = it.getCoord();
+            for (int axis = 0; axis < 3; ++axis) {
+                for (int step : {-1, 1}) {
+                    openvdb::Coord n = c;
+                    n[axis] += step;
+                    if (!mask.isValueOn(n)) shell.emplace_back(n, *it);
+                }
+            }
+        }
+        std::sort(shell.begin(), shell.end(),
+                  [](const auto& a, const auto& b) { return a.first < b.first; });
+        auto accessor = grid->getAccessor();
+        for (std::size_t i = 0; i < shell.size();) {
+            float sum = 0.0f;
+            std::size_t j = i;
+            for (; j < shell.size() && shell[j].first == shell[i].first; ++j)
+                sum += shell[j].second;
+            accessor.setValueOff(shell[i].first, sum < 0.0f ? -background_m : background_m);
+            i = j;
+        }
+    }
+    grid->tree().prune();
+    grid->insertMeta("shine_origin_world_m",
+                     openvdb::Vec3DMetadata(openvdb::Vec3d(
+                         sdf.origin_world_m.x(), sdf.origin_world_m.y(), sdf.origin_world_m.z())));
+    if (stats) {
+        stats->evaluated_voxels = evaluated;
+        stats->active_voxels = grid->activeVoxelCount();
+        stats->voxel_size_m = voxel_m;
+    }
+    return grid;
+}
+
+}  // namespace shine

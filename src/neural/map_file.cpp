@@ -1,0 +1,236 @@
+#include "shine/map/map_file.hpp"
+
+#include <openvdb/io/File.h>
+
+#include <cstring>
+#include <mutex>
+
+#include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
+#include "shine/map/feature_octree_impl.hpp"
+
+namespace shine {
+namespace {
+
+constexpr char kFormatKey[] = "shine_format";
+constexpr char kFormatName[] = "shine-neural-map-1";
+
+/// OpenVDB metadata holding a float array (feature table, decoder weights). Tools that do not
+/// know the type keep it as opaque bytes, so the file stays readable by vdb_print.
+class FloatArrayMetadata : public openvdb::Metadata {
+  public:
+    using Ptr = openvdb::SharedPtr<FloatArrayMetadata>;
+    static constexpr const char* kTypeName = "shine_float_array";
+
+    FloatArrayMetadata() = default;
+    explicit FloatArrayMetadata(std::vector<float> values) : values_(std::move(values)) {}
+
+    const std::vector<float>& values() const { return values_; }
+
+    static openvdb::Name staticTypeName() { return kTypeName; }
+    openvdb::Name typeName() const override { return kTypeName; }
+    openvdb::Metadata::Ptr copy() const override {
+        return openvdb::Metadata::Ptr(new FloatArrayMetadata(values_));
+    }
+    void copy(const openvdb::Metadata& other) override {
+        const auto* o = dynamic_cast<const FloatArrayMetadata*>(&other);
+        if (!o) OPENVDB_THROW(openvdb::TypeError, "incompatible metadata type");
+        values_ = o->values_;
+    }
+    std::string str() const override { return "float[" + std::to_string(values_.size()) + "]"; }
+    bool asBool() const override { return !values_.empty(); }
+    openvdb::Index32 size() const override {
+        return static_cast<openvdb::Index32>(values_.size() * sizeof(float));
+    }
+    static openvdb::Metadata::Ptr create() {
+        return openvdb::Metadata::Ptr(new FloatArrayMetadata);
+    }
+
+  protected:
+    void readValue(std::istream& is, openvdb::Index32 num_bytes) override {
+        if (num_bytes % sizeof(float) != 0) {
+            OPENVDB_THROW(openvdb::IoError, "float array metadata of " << num_bytes << " bytes");
+        }
+        values_.resize(num_bytes / sizeof(float));
+        is.read(reinterpret_cast<char*>(values_.data()), num_bytes);
+        if (!is) OPENVDB_THROW(openvdb::IoError, "truncated float array metadata");
+    }
+    void writeValue(std::ostream& os) const override {
+        os.write(reinterpret_cast<const char*>(values_.data()), size());
+    }
+
+  private:
+    std::vector<float> values_;
+};
+
+void register_metadata_types() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        openvdb::initialize();
+        if (!openvdb::Metadata::isRegisteredType(FloatArrayMetadata::kTypeName)) {
+            openvdb::Metadata::registerType(FloatArrayMetadata::kTypeName,
+                                            FloatArrayMetadata::create);
+        }
+    });
+}
+
+template <typename MetaT>
+auto required(const openvdb::MetaMap& meta, const std::string& key,
+              const std::filesystem::path& path)
+    -> std::decay_t<decltype(std::declval<MetaT>().value())> {
+    auto m = meta.getMetadata<MetaT>(key);
+    if (!m) {
+        throw IoError("'" + path.string() + "' is not a complete ShineVDB map: metadata '" + key +
+                      "' is missing or has the wrong type");
+    }
+    return m->value();
+}
+
+}  // namespace
+
+void save_neural_map(const std::filesystem::path& path, const NeuralSdf& sdf,
+                     const std::string& config_text) {
+    register_metadata_types();
+    const FeatureOctree& octree = sdf.octree;
+    const auto& cfg = octree.config();
+    openvdb::MetaMap meta;
+    meta.insertMeta(kFormatKey, openvdb::StringMetadata(kFormatName));
+    meta.insertMeta("shine_leaf_size_m", openvdb::DoubleMetadata(cfg.leaf_size_m));
+    meta.insertMeta("shine_num_levels", openvdb::Int32Metadata(cfg.num_levels));
+    meta.insertMeta("shine_feature_dim", openvdb::Int32Metadata(cfg.feature_dim));
+    meta.insertMeta("shine_init_std", openvdb::FloatMetadata(cfg.init_std));
+    meta.insertMeta("shine_allocation_margin_ratio",
+                    openvdb::DoubleMetadata(cfg.allocation_margin_ratio));
+    meta.insertMeta("shine_seed", openvdb::Int64Metadata(static_cast<openvdb::Int64>(cfg.seed)));
+    meta.insertMeta("shine_num_corners",
+                    openvdb::Int64Metadata(static_cast<openvdb::Int64>(octree.num_corners())));
+    meta.insertMeta("shine_features", FloatArrayMetadata(octree.features()));
+    std::string hidden;
+    for (int h : sdf.decoder.config().hidden_dims)
+        hidden += (hidden.empty() ? "" : ",") + std::to_string(h);
+    meta.insertMeta("shine_decoder_hidden_dims", openvdb::StringMetadata(hidden));
+    meta.insertMeta("shine_decoder_weights", FloatArrayMetadata(sdf.decoder.params()));
+    meta.insertMeta("shine_origin_world_m",
+                    openvdb::Vec3DMetadata(openvdb::Vec3d(
+                        sdf.origin_world_m.x(), sdf.origin_world_m.y(), sdf.origin_world_m.z())));
+    meta.insertMeta("shine_config", openvdb::StringMetadata(config_text));
+
+    openvdb::GridPtrVec grids;
+    for (const auto& grid : octree.impl().level_grids) grids.push_back(grid);
+    write_file_atomically(path, [&](const std::filesystem::path& tmp) {
+        try {
+            openvdb::io::File file(tmp.string());
+            file.write(grids, meta);
+            file.close();
+        } catch (const openvdb::Exception& e) {
+            throw IoError("cannot write map '" + path.string() + "': " + e.what());
+        }
+    });
+}
+
+LoadedMap load_neural_map(const std::filesystem::path& path) {
+    register_metadata_types();
+    if (!std::filesystem::is_regular_file(path)) {
+        throw IoError("map file '" + path.string() + "' does not exist");
+    }
+    openvdb::GridPtrVecPtr grids;
+    openvdb::MetaMap::Ptr meta;
+    try {
+        openvdb::io::File file(path.string());
+        file.open(false);
+        grids = file.getGrids();
+        meta = file.getMetadata();
+        file.close();
+    } catch (const std::exception& e) {
+        throw IoError("cannot read map '" + path.string() + "': not a valid .vdb file (" +
+                      e.what() + ")");
+    }
+    const auto format = meta->getMetadata<openvdb::StringMetadata>(kFormatKey);
+    if (!format || format->value() != kFormatName) {
+        throw IoError("'" + path.string() + "' is a .vdb file but not a ShineVDB neural map (no '" +
+                      kFormatKey + "' metadata); did you pass surface.vdb instead of map.vdb?");
+    }
+    FeatureOctreeConfig cfg;
+    cfg.leaf_size_m = required<openvdb::DoubleMetadata>(*meta, "shine_leaf_size_m", path);
+    cfg.num_levels = required<openvdb::Int32Metadata>(*meta, "shine_num_levels", path);
+    cfg.feature_dim = required<openvdb::Int32Metadata>(*meta, "shine_feature_dim", path);
+    cfg.init_std = required<openvdb::FloatMetadata>(*meta, "shine_init_std", path);
+    cfg.allocation_margin_ratio =
+        required<openvdb::DoubleMetadata>(*meta, "shine_allocation_margin_ratio", path);
+    cfg.seed =
+        static_cast<std::uint64_t>(required<openvdb::Int64Metadata>(*meta, "shine_seed", path));
+    DecoderConfig decoder_cfg;
+    decoder_cfg.input_dim = cfg.feature_dim;
+    decoder_cfg.hidden_dims.clear();
+    const std::string hidden =
+        required<openvdb::StringMetadata>(*meta, "shine_decoder_hidden_dims", path);
+    try {
+        std::size_t pos = 0;
+        while (pos < hidden.size()) {
+            const std::size_t comma = hidden.find(',', pos);
+            decoder_cfg.hidden_dims.push_back(std::stoi(hidden.substr(pos, comma - pos)));
+            pos = comma == std::string::npos ? hidden.size() : comma + 1;
+        }
+    } catch (const std::exception&) {
+        throw IoError("'" + path.string() + "': malformed decoder layer list '" + hidden + "'");
+    }
+    LoadedMap loaded{
+        [&] {
+            try {
+                return NeuralSdf(cfg, decoder_cfg);
+            } catch (const ConfigError& e) {
+                throw IoError("'" + path.string() + "': invalid map parameters: " + e.what());
+            }
+        }(),
+        required<openvdb::StringMetadata>(*meta, "shine_config", path)};
+    NeuralSdf& sdf = loaded.sdf;
+
+    auto weights = meta->getMetadata<FloatArrayMetadata>("shine_decoder_weights");
+    if (!weights || weights->values().size() != sdf.decoder.num_params()) {
+        throw IoError("'" + path.string() + "': decoder weights missing or of the wrong size");
+    }
+    sdf.decoder.params() = weights->values();
+    auto features = meta->getMetadata<FloatArrayMetadata>("shine_features");
+    const auto num_corners = required<openvdb::Int64Metadata>(*meta, "shine_num_corners", path);
+    if (!features || num_corners < 0 ||
+        features->values().size() != static_cast<std::size_t>(num_corners) * cfg.feature_dim) {
+        throw IoError("'" + path.string() + "': feature table missing or of the wrong size");
+    }
+    const auto origin = required<openvdb::Vec3DMetadata>(*meta, "shine_origin_world_m", path);
+    sdf.origin_world_m = Eigen::Vector3d(origin.x(), origin.y(), origin.z());
+
+    auto& level_grids = sdf.octree.impl().level_grids;
+    std::size_t corner_total = 0;
+    for (int level = 0; level < cfg.num_levels; ++level) {
+        const std::string name = "feature_level_" + std::to_string(level);
+        openvdb::Int32Grid::Ptr found;
+        for (const auto& g : *grids) {
+            if (g->getName() == name) found = openvdb::gridPtrCast<openvdb::Int32Grid>(g);
+        }
+        if (!found) throw IoError("'" + path.string() + "': grid '" + name + "' is missing");
+        for (auto it = found->cbeginValueOn(); it; ++it) {
+            if (*it < 0 || *it >= num_corners) {
+                throw IoError("'" + path.string() + "': grid '" + name +
+                              "' refers to feature row " + std::to_string(*it) + " of " +
+                              std::to_string(num_corners));
+            }
+        }
+        corner_total += found->activeVoxelCount();
+        found->setTransform(level_grids[level]->transform().copy());
+        level_grids[level] = found;
+    }
+    if (corner_total != static_cast<std::size_t>(num_corners)) {
+        throw IoError("'" + path.string() + "': grids hold " + std::to_string(corner_total) +
+                      " corners but the feature table has " + std::to_string(num_corners));
+    }
+    sdf.octree.features() = features->values();
+    return loaded;
+}
+
+std::size_t file_bytes(const std::filesystem::path& path) {
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(path, ec);
+    return ec ? 0 : static_cast<std::size_t>(size);
+}
+
+}  // namespace shine

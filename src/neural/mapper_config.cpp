@@ -1,0 +1,212 @@
+#include "shine/mapper/mapper_config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <sstream>
+
+#include "shine/core/error.hpp"
+
+namespace shine {
+namespace {
+
+// One table of keys: each entry reads a YAML scalar into the field, checks its range and writes
+// it back. Keeping read and write together keeps the YAML form and the struct in step.
+struct Field {
+    std::function<void(const YAML::Node&, const std::string& key)> read;
+    std::function<void(YAML::Emitter&)> write;
+};
+
+template <typename T>
+T as(const YAML::Node& node, const std::string& key) {
+    try {
+        return node.as<T>();
+    } catch (const YAML::Exception&) {
+        throw ConfigError("key '" + key + "': cannot read '" + YAML::Dump(node) + "' as a " +
+                          (std::is_same_v<T, bool> ? "boolean" : "number"));
+    }
+}
+
+template <typename T>
+Field number(T& field, double lo, double hi) {
+    return {[&field, lo, hi](const YAML::Node& node, const std::string& key) {
+                const T value = as<T>(node, key);
+                if (!(static_cast<double>(value) >= lo && static_cast<double>(value) <= hi)) {
+                    std::ostringstream msg;
+                    msg << "key '" << key << "': " << value << " is out of range [" << lo << ", "
+                        << hi << "]";
+                    throw ConfigError(msg.str());
+                }
+                field = value;
+            },
+            [&field](YAML::Emitter& out) { out << field; }};
+}
+
+Field boolean(bool& field) {
+    return {
+        [&field](const YAML::Node& node, const std::string& key) { field = as<bool>(node, key); },
+        [&field](YAML::Emitter& out) { out << field; }};
+}
+
+Field int_list(std::vector<int>& field, int lo, int hi) {
+    return {[&field, lo, hi](const YAML::Node& node, const std::string& key) {
+                if (!node.IsSequence()) throw ConfigError("key '" + key + "' must be a list");
+                std::vector<int> values;
+                for (const auto& item : node) {
+                    const int v = as<int>(item, key);
+                    if (v < lo || v > hi) {
+                        throw ConfigError("key '" + key + "': " + std::to_string(v) +
+                                          " is out of range");
+                    }
+                    values.push_back(v);
+                }
+                field = values;
+            },
+            [&field](YAML::Emitter& out) {
+                out << YAML::Flow << YAML::BeginSeq;
+                for (int v : field) out << v;
+                out << YAML::EndSeq;
+            }};
+}
+
+Field invalid_policy(InvalidPointPolicy& field) {
+    return {
+        [&field](const YAML::Node& node, const std::string& key) {
+            const std::string v = node.as<std::string>();
+            if (v == "error")
+                field = InvalidPointPolicy::kError;
+            else if (v == "drop")
+                field = InvalidPointPolicy::kDrop;
+            else
+                throw ConfigError("key '" + key + "': expected 'error' or 'drop', got '" + v + "'");
+        },
+        [&field](YAML::Emitter& out) {
+            out << (field == InvalidPointPolicy::kError ? "error" : "drop");
+        }};
+}
+
+constexpr double kInf = 1e300;
+
+using Section = std::vector<std::pair<std::string, Field>>;
+
+std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
+    return {
+        {"preprocess",
+         {{"min_range_m", number(c.preprocess.min_range_m, 0.0, kInf)},
+          {"max_range_m", number(c.preprocess.max_range_m, 0.0, kInf)},
+          {"voxel_downsample_m", number(c.preprocess.voxel_downsample_m, 0.0, 10.0)},
+          {"invalid_points", invalid_policy(c.preprocess.invalid_points)}}},
+        {"map",
+         {{"leaf_size_m", number(c.octree.leaf_size_m, 1e-3, 100.0)},
+          {"num_levels", number(c.octree.num_levels, 1, 8)},
+          {"feature_dim", number(c.octree.feature_dim, 1, 64)},
+          {"init_std", number(c.octree.init_std, 0.0, 10.0)},
+          {"allocation_margin_ratio", number(c.octree.allocation_margin_ratio, 0.0, 4.0)}}},
+        {"decoder", {{"hidden_dims", int_list(c.decoder.hidden_dims, 1, 1024)}}},
+        {"sampling",
+         {{"surface_samples", number(c.sampling.surface_samples, 0, 32)},
+          {"free_samples", number(c.sampling.free_samples, 0, 32)},
+          {"surface_band_m", number(c.sampling.surface_band_m, 1e-3, 10.0)},
+          {"free_space_start_ratio", number(c.sampling.free_space_start_ratio, 0.0, 1.0)}}},
+        {"training",
+         {{"iterations", number(c.iterations, 0, 10000000)},
+          {"batch_size", number(c.trainer.batch_size, 1, 1 << 22)},
+          {"sigma_m", number(c.trainer.sigma_m, 1e-4, 10.0)},
+          {"eikonal_weight", number(c.trainer.eikonal_weight, 0.0, 100.0)},
+          {"learning_rate", number(c.trainer.feature_adam.learning_rate, 1e-7, 10.0)},
+          {"decoder_learning_rate", number(c.trainer.decoder_adam.learning_rate, 1e-7, 10.0)},
+          {"final_learning_rate_ratio", number(c.final_learning_rate_ratio, 0.0, 1.0)},
+          {"train_decoder", boolean(c.trainer.train_decoder)}}},
+        {"bake",
+         {{"voxel_size_m", number(c.bake.voxel_size_m, 0.0, 100.0)},
+          {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)}}},
+        {"mesh",
+         {{"adaptivity", number(c.mesh.adaptivity, 0.0, 1.0)},
+          {"min_component_triangles", number(c.mesh.min_component_triangles, 0, 1e12)}}},
+        {"run", {{"threads", number(c.threads, 0, 1024)}, {"seed", number(c.seed, 0, 1.8e19)}}},
+    };
+}
+
+}  // namespace
+
+void MapperConfig::finalize() {
+    decoder.input_dim = octree.feature_dim;
+    octree.seed = seed;
+    decoder.seed = seed ^ 0x5bd1e995u;
+    trainer.seed = seed ^ 0x27d4eb2fu;
+    if (preprocess.max_range_m <= preprocess.min_range_m) {
+        throw ConfigError("preprocess.max_range_m must exceed preprocess.min_range_m");
+    }
+    if (sampling.samples_per_ray() < 1) {
+        throw ConfigError("sampling: at least one sample per ray is needed");
+    }
+}
+
+void parse_config_yaml(const std::string& text, const std::string& source, MapperConfig& config) {
+    YAML::Node root;
+    try {
+        root = YAML::Load(text);
+    } catch (const YAML::Exception& e) {
+        throw ConfigError("'" + source + "' is not valid YAML: " + e.what());
+    }
+    if (root.IsNull()) return;
+    if (!root.IsMap()) throw ConfigError("'" + source + "': the top level must be a mapping");
+    auto sections = schema(config);
+    for (const auto& section_node : root) {
+        const std::string section_name = section_node.first.as<std::string>();
+        auto section = std::find_if(sections.begin(), sections.end(),
+                                    [&](const auto& s) { return s.first == section_name; });
+        if (section == sections.end()) {
+            std::string known;
+            for (const auto& s : sections) known += " " + s.first;
+            throw ConfigError("'" + source + "': unknown section '" + section_name +
+                              "' (known:" + known + ")");
+        }
+        if (!section_node.second.IsMap()) {
+            throw ConfigError("'" + source + "': section '" + section_name + "' must be a mapping");
+        }
+        for (const auto& item : section_node.second) {
+            const std::string key = item.first.as<std::string>();
+            auto field = std::find_if(section->second.begin(), section->second.end(),
+                                      [&](const auto& f) { return f.first == key; });
+            const std::string full = section_name + "." + key;
+            if (field == section->second.end()) {
+                throw ConfigError("'" + source + "': unknown key '" + full + "'");
+            }
+            try {
+                field->second.read(item.second, full);
+            } catch (const ConfigError& e) {
+                throw ConfigError("'" + source + "': " + e.what());
+            }
+        }
+    }
+}
+
+void load_config_yaml(const std::filesystem::path& path, MapperConfig& config) {
+    std::ifstream in(path);
+    if (!in) throw ConfigError("cannot open config file '" + path.string() + "'");
+    std::stringstream text;
+    text << in.rdbuf();
+    parse_config_yaml(text.str(), path.string(), config);
+}
+
+std::string config_to_yaml(const MapperConfig& config) {
+    MapperConfig copy = config;
+    YAML::Emitter out;
+    out << YAML::BeginMap;
+    for (auto& section : schema(copy)) {
+        out << YAML::Key << section.first << YAML::Value << YAML::BeginMap;
+        for (auto& field : section.second) {
+            out << YAML::Key << field.first << YAML::Value;
+            field.second.write(out);
+        }
+        out << YAML::EndMap;
+    }
+    out << YAML::EndMap;
+    return std::string(out.c_str()) + "\n";
+}
+
+}  // namespace shine
