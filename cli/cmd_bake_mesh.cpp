@@ -22,6 +22,7 @@ struct BakeOptions {
     std::string out;
     double voxel_size_m = 0.0;
     float half_width_voxels = 3.0f;
+    int mask_level = -1;
     int threads = 0;
     double adaptivity = 0.0;
 };
@@ -36,6 +37,7 @@ BakeConfig bake_config_for(const LoadedMap& map, const BakeOptions& opt) {
         bake.voxel_size_m = opt.voxel_size_m;
     }
     bake.half_width_voxels = opt.half_width_voxels;
+    if (opt.mask_level >= 0) bake.mask_level = opt.mask_level;
     return bake;
 }
 
@@ -48,7 +50,9 @@ openvdb::FloatGrid::Ptr level_set_from(const BakeOptions& opt) {
         is_level_set = true;
     } catch (const IoError&) {
     }
-    if (is_level_set && opt.voxel_size_m == 0.0) return read_level_set(opt.input);
+    if (is_level_set && opt.voxel_size_m == 0.0 && opt.mask_level < 0) {
+        return read_level_set(opt.input);
+    }
     const LoadedMap map = load_neural_map(opt.input);
     BakeStats stats;
     auto grid = bake_level_set(map.sdf, bake_config_for(map, opt), &stats);
@@ -85,6 +89,8 @@ void add_common(CLI::App* cmd, BakeOptions& opt) {
                     "Level-set voxel size in metres (default: the map's setting, half the leaf)");
     cmd->add_option("--half-width-voxels", opt.half_width_voxels, "Narrow-band half-width")
         ->capture_default_str();
+    cmd->add_option("--mask-level", opt.mask_level,
+                    "Bake inside the allocated cells of this level (default: the map's setting)");
     cmd->add_option("--threads", opt.threads, "Worker threads (0 = all cores)");
 }
 

@@ -38,6 +38,7 @@ struct MapOptions {
     std::string ref_path;
     bool no_eval = false;
     bool quiet = false;
+    bool print_config = false;
     std::string mode = "batch";
 };
 
@@ -61,6 +62,10 @@ int run_map(const MapOptions& opt) {
     if (opt.iterations >= 0) config.iterations = opt.iterations;
     if (opt.seed >= 0) config.seed = static_cast<std::uint64_t>(opt.seed);
     config.finalize();
+    if (opt.print_config) {
+        std::printf("%s", config_to_yaml(config).c_str());
+        return 0;
+    }
     auto threads = limit_threads(config.threads);
 
     // Data: the bundled street unless a directory is given; simulated on first use.
@@ -208,6 +213,8 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
                     "Reference mesh to evaluate against (default: DATA/gt_mesh.ply if present)");
     cmd->add_flag("--no-eval", opt->no_eval, "Skip the evaluation");
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
+    cmd->add_flag("--print-config", opt->print_config,
+                  "Print the effective configuration as YAML and exit");
     cmd->callback([opt, &action] { action = [opt] { return run_map(*opt); }; });
 });
 

@@ -10,6 +10,7 @@ void encode_point(CellLookup& lookup, const FeatureOctree& octree, const Eigen::
                   bool with_gradients, EncodedPoint& out) {
     out.num_corners = 0;
     out.has_level0 = false;
+    out.level_mask = 0;
     LevelCorners cell;
     for (int level = 0; level < octree.num_levels(); ++level) {
         if (!lookup.find_cell(level, point_map, cell)) continue;
@@ -22,6 +23,7 @@ void encode_point(CellLookup& lookup, const FeatureOctree& octree, const Eigen::
             corner_weights(cell.t, out.weights + base);
         }
         if (level == 0) out.has_level0 = true;
+        out.level_mask |= 1u << level;
         out.num_corners += 8;
     }
 }

@@ -154,9 +154,9 @@ bool FeatureOctree::has_leaf_cell(const Eigen::Vector3i& cell) const {
     return true;
 }
 
-std::vector<Eigen::Vector3i> FeatureOctree::leaf_cells() const {
+std::vector<Eigen::Vector3i> FeatureOctree::cells(int level) const {
     std::vector<Eigen::Vector3i> cells;
-    const auto& grid = *impl_->level_grids[0];
+    const auto& grid = *impl_->level_grids.at(level);
     auto accessor = grid.getConstUnsafeAccessor();
     for (auto it = grid.cbeginValueOn(); it; ++it) {
         // Every allocated cell has its (0,0,0) corner allocated: test each corner as a cell origin.

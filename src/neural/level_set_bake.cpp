@@ -27,8 +27,13 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
         throw ConfigError("bake half_width_voxels must be at least 1");
     }
     const float background_m = static_cast<float>(config.half_width_voxels * voxel_m);
-    const double leaf_m = sdf.octree.config().leaf_size_m;
-    const std::vector<Eigen::Vector3i> cells = sdf.octree.leaf_cells();
+    if (config.mask_level < 0 || config.mask_level >= sdf.octree.num_levels()) {
+        throw ConfigError("bake mask_level must be between 0 and " +
+                          std::to_string(sdf.octree.num_levels() - 1));
+    }
+    const double leaf_m = sdf.octree.cell_size_m(config.mask_level);
+    const std::uint32_t mask_bit = 1u << config.mask_level;
+    const std::vector<Eigen::Vector3i> cells = sdf.octree.cells(config.mask_level);
 
     // Per block of cells, evaluate the voxels whose sample point lies inside the cell: voxel
     // indices i with cell*leaf <= i*voxel < (cell+1)*leaf, so every voxel belongs to one cell.
@@ -61,7 +66,7 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
                                                 static_cast<float>(j * voxel_m),
                                                 static_cast<float>(k * voxel_m));
                         encode_point(lookup, sdf.octree, p, false, encoded);
-                        if (!encoded.has_level0) continue;
+                        if (!(encoded.level_mask & mask_bit)) continue;
                         gather_feature(encoded, sdf.octree.features().data(), dim, feature);
                         values.push_back(
                             {openvdb::Coord(i, j, k), sdf.decoder.forward(feature, ws)});

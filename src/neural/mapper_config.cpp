@@ -122,7 +122,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"train_decoder", boolean(c.trainer.train_decoder)}}},
         {"bake",
          {{"voxel_size_m", number(c.bake.voxel_size_m, 0.0, 100.0)},
-          {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)}}},
+          {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)},
+          {"mask_level", number(c.bake.mask_level, 0, 7)}}},
         {"mesh",
          {{"adaptivity", number(c.mesh.adaptivity, 0.0, 1.0)},
           {"min_component_triangles", number(c.mesh.min_component_triangles, 0, 1e12)}}},
@@ -196,6 +197,8 @@ void load_config_yaml(const std::filesystem::path& path, MapperConfig& config) {
 std::string config_to_yaml(const MapperConfig& config) {
     MapperConfig copy = config;
     YAML::Emitter out;
+    out.SetFloatPrecision(6);
+    out.SetDoublePrecision(12);
     out << YAML::BeginMap;
     for (auto& section : schema(copy)) {
         out << YAML::Key << section.first << YAML::Value << YAML::BeginMap;

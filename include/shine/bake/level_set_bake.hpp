@@ -18,6 +18,9 @@ namespace shine {
 struct BakeConfig {
     double voxel_size_m = 0.0;       ///< 0: half the leaf size
     float half_width_voxels = 3.0f;  ///< narrow band half-width (OpenVDB's default is 3)
+    /// The surface is baked inside the allocated cells of this level: 0 keeps it to the finest
+    /// cells around the points; 1 also fills the gaps between them that the next level covers.
+    int mask_level = 0;
 };
 
 /// Statistics of a bake, for logs and stats.json.

@@ -67,8 +67,10 @@ class FeatureOctree {
     /// True when the level-0 cell with integer coordinates `cell` has all 8 corners.
     bool has_leaf_cell(const Eigen::Vector3i& cell) const;
 
-    /// Integer coordinates of every allocated level-0 cell (all 8 corners present), sorted.
-    std::vector<Eigen::Vector3i> leaf_cells() const;
+    /// Integer coordinates of every allocated cell of `level` (all 8 corners present), sorted.
+    std::vector<Eigen::Vector3i> cells(int level) const;
+    /// cells(0).
+    std::vector<Eigen::Vector3i> leaf_cells() const { return cells(0); }
 
     /// Number of allocated corners (= feature rows) over all levels.
     std::size_t num_corners() const { return features_.size() / config_.feature_dim; }

@@ -22,7 +22,8 @@ struct EncodedPoint {
     std::int32_t rows[8 * kMaxLevels];
     float weights[8 * kMaxLevels];
     float weight_gradients_per_m[8 * kMaxLevels][3];
-    bool has_level0 = false;  ///< the finest level contributes
+    bool has_level0 = false;       ///< the finest level contributes
+    std::uint32_t level_mask = 0;  ///< bit l set when level l contributes
 
     bool valid() const { return num_corners > 0; }
 };
