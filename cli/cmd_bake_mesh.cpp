@@ -44,14 +44,13 @@ BakeConfig bake_config_for(const LoadedMap& map, const BakeOptions& opt) {
 /// The level set of `input`: read from a surface .vdb, or baked from a neural map .vdb.
 openvdb::FloatGrid::Ptr level_set_from(const BakeOptions& opt) {
     openvdb::initialize();
-    bool is_level_set = false;
-    try {
-        read_level_set(opt.input);
-        is_level_set = true;
-    } catch (const IoError&) {
-    }
-    if (is_level_set && opt.voxel_size_m == 0.0 && opt.mask_level < 0) {
-        return read_level_set(opt.input);
+    // A surface .vdb is used as it is unless a new resolution or mask is asked for; anything
+    // else must be a neural map, whose loader explains what is wrong with the file.
+    if (opt.voxel_size_m == 0.0 && opt.mask_level < 0) {
+        try {
+            return read_level_set(opt.input);
+        } catch (const IoError&) {
+        }
     }
     const LoadedMap map = load_neural_map(opt.input);
     BakeStats stats;
