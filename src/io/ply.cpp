@@ -19,6 +19,7 @@
 
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/io/file_contents.hpp"
 
 namespace shine {
 namespace fs = std::filesystem;
@@ -32,20 +33,7 @@ namespace {
 }
 
 std::string read_whole_file(const fs::path& path) {
-    std::error_code ec;
-    if (!fs::exists(path, ec)) fail(path, "", "file does not exist");
-    if (fs::is_directory(path, ec)) fail(path, "", "is a directory, expected a .ply file");
-    std::ifstream in(path, std::ios::binary);
-    if (!in) fail(path, "", "cannot open for reading (permissions?)");
-    in.seekg(0, std::ios::end);
-    const std::streamoff size = in.tellg();
-    if (size < 0) fail(path, "", "cannot determine the file size");
-    if (size == 0) fail(path, "", "file is empty");
-    in.seekg(0, std::ios::beg);
-    std::string data(static_cast<std::size_t>(size), '\0');
-    in.read(data.data(), size);
-    if (in.gcount() != size) fail(path, "", "read error (file changed while reading?)");
-    return data;
+    return read_file_contents(path, "PLY file", "a .ply file");
 }
 
 enum class Format { kAscii, kBinaryLittle, kBinaryBig };

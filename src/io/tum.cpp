@@ -11,6 +11,7 @@
 
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/io/file_contents.hpp"
 
 namespace shine {
 namespace fs = std::filesystem;
@@ -24,14 +25,7 @@ namespace {
 }
 
 std::string read_whole_file(const fs::path& path) {
-    std::error_code ec;
-    if (!fs::exists(path, ec)) fail(path, "", "file does not exist");
-    if (fs::is_directory(path, ec)) fail(path, "", "is a directory, expected a file");
-    std::ifstream in(path, std::ios::binary);
-    if (!in) fail(path, "", "cannot open for reading (permissions?)");
-    std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (data.empty()) fail(path, "", "file is empty");
-    return data;
+    return read_file_contents(path, "TUM trajectory", "a file");
 }
 
 }  // namespace
