@@ -147,13 +147,15 @@ int run_map(const MapOptions& opt) {
                           {"output_points", stats.preprocess.output}};
     json["seconds"] = {{"load", stats.load_seconds},
                        {"allocate", stats.allocate_seconds},
+                       {"normals", stats.normals_seconds},
                        {"train", stats.train_seconds},
                        {"save_map", save_seconds},
                        {"bake", bake_seconds},
                        {"mesh", mesh_seconds},
                        {"total", seconds_since(start_total)}};
     json["seconds_per_frame"] =
-        stats.frames ? (stats.load_seconds + stats.allocate_seconds + stats.train_seconds) /
+        stats.frames ? (stats.load_seconds + stats.allocate_seconds + stats.normals_seconds +
+                        stats.train_seconds) /
                            static_cast<double>(stats.frames)
                      : 0.0;
     json["map"] = {{"corners", sdf.octree.num_corners()},

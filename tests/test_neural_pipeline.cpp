@@ -144,7 +144,7 @@ TEST(MapFile, CorruptOrForeignFilesGiveClearErrors) {
 TEST(BakeAndMesh, AnalyticPlaneAndSphereWithSubVoxelError) {
     MapperConfig config = small_config();
     BatchMapper mapper(config);
-    for (const Eigen::Vector3d origin :
+    for (const Eigen::Vector3d& origin :
          {Eigen::Vector3d(0, 0, 1.7), Eigen::Vector3d(1.5, 2.5, 1.7),
           Eigen::Vector3d(7.5, -1.0, 1.7), Eigen::Vector3d(4.0, -3.5, 1.7)}) {
         mapper.add_scan(make_scan(origin, 32, 720, 12.0));

@@ -5,6 +5,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/mapper/trainer.hpp"
+#include "shine/sampling/incidence.hpp"
 
 namespace shine {
 namespace {
@@ -55,7 +56,12 @@ void BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
     if (rays_.num_rays() == 0) {
         throw DataError("no points left to map after preprocessing (check the range limits)");
     }
-    const auto start = std::chrono::steady_clock::now();
+    auto start = std::chrono::steady_clock::now();
+    if (config_.incidence.enabled) {
+        rays_.set_label_scales(ray_incidence_cosines(rays_, config_.incidence));
+    }
+    stats_.normals_seconds += seconds_since(start);
+    start = std::chrono::steady_clock::now();
     Trainer trainer(*sdf_, config_.trainer, config_.sampling);
     const float lr0 = config_.trainer.feature_adam.learning_rate;
     const float dlr0 = config_.trainer.decoder_adam.learning_rate;

@@ -5,7 +5,7 @@
 namespace shine {
 
 void sample_ray(const Eigen::Vector3f& origin_map, const Eigen::Vector3f& endpoint_map,
-                const SamplingConfig& config, Pcg32& rng, RaySample* out) {
+                const SamplingConfig& config, Pcg32& rng, RaySample* out, float label_scale) {
     const Eigen::Vector3f ray = endpoint_map - origin_map;
     const float range_m = ray.norm();
     const Eigen::Vector3f direction =
@@ -14,13 +14,14 @@ void sample_ray(const Eigen::Vector3f& origin_map, const Eigen::Vector3f& endpoi
     for (int i = 0; i < config.surface_samples; ++i, ++n) {
         const float offset_m = rng.uniform(-config.surface_band_m, config.surface_band_m);
         const float t = std::max(0.0f, range_m + offset_m);
-        out[n] = {origin_map + t * direction, range_m - t, SampleKind::kSurface};
+        out[n] = {origin_map + t * direction, label_scale * (range_m - t), SampleKind::kSurface};
     }
     const float free_begin = config.free_space_start_ratio * range_m;
     const float free_end = std::max(free_begin, range_m - config.surface_band_m);
     for (int i = 0; i < config.free_samples; ++i, ++n) {
         const float t = rng.uniform(free_begin, free_end);
-        out[n] = {origin_map + t * direction, range_m - t, SampleKind::kFreeSpace};
+        out[n] = {origin_map + t * direction, label_scale * (range_m - t),
+                  SampleKind::kFreeSpace};
     }
 }
 

@@ -21,6 +21,7 @@ struct MappingStats {
     PreprocessStats preprocess;
     double load_seconds = 0.0;      ///< reading and preprocessing scans
     double allocate_seconds = 0.0;  ///< growing the octree
+    double normals_seconds = 0.0;   ///< surface normals for the label correction
     double train_seconds = 0.0;
     std::size_t iterations = 0;
     double final_bce = 0.0;

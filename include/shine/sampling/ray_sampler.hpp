@@ -34,7 +34,10 @@ struct RaySample {
 
 /// Writes config.samples_per_ray() samples of the ray origin -> endpoint into `out`
 /// (surface samples first). A ray shorter than the band gets free samples clamped to the origin.
+/// Labels are multiplied by `label_scale` (|cos(incidence)| turns them into tangent-plane
+/// distances, see incidence.hpp).
 void sample_ray(const Eigen::Vector3f& origin_map, const Eigen::Vector3f& endpoint_map,
-                const SamplingConfig& config, Pcg32& rng, RaySample* out);
+                const SamplingConfig& config, Pcg32& rng, RaySample* out,
+                float label_scale = 1.0f);
 
 }  // namespace shine

@@ -1,0 +1,87 @@
+#include "shine/sampling/incidence.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <nanoflann.hpp>
+
+namespace shine {
+namespace {
+
+/// nanoflann's view of the ray endpoints.
+struct EndpointCloud {
+    const RaySet& rays;
+
+    std::size_t kdtree_get_point_count() const { return rays.num_rays(); }
+    float kdtree_get_pt(std::uint32_t ray, std::size_t axis) const {
+        return rays.endpoint(ray)[static_cast<Eigen::Index>(axis)];
+    }
+    template <class BoundingBox>
+    bool kdtree_get_bbox(BoundingBox& /*unused*/) const {
+        return false;
+    }
+};
+
+using EndpointTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, EndpointCloud>,
+                                        EndpointCloud, 3, std::uint32_t>;
+
+constexpr int kMaxNeighbors = 64;
+
+}  // namespace
+
+std::vector<float> ray_incidence_cosines(const RaySet& rays, const IncidenceConfig& config) {
+    const std::size_t n = rays.num_rays();
+    std::vector<float> cosines(n, 1.0f);
+    if (n < 3) return cosines;
+    const EndpointCloud cloud{rays};
+    EndpointTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    tree.buildIndex();
+    const int k = std::clamp(config.neighbors, 3, kMaxNeighbors);
+    const float max_radius_sq = config.max_radius_m * config.max_radius_m;
+
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& range) {
+        std::uint32_t index[kMaxNeighbors];
+        float distance_sq[kMaxNeighbors];
+        for (std::size_t ray = range.begin(); ray != range.end(); ++ray) {
+            const Eigen::Vector3f& p = rays.endpoint(ray);
+            nanoflann::KNNResultSet<float, std::uint32_t> result(static_cast<std::size_t>(k));
+            result.init(index, distance_sq);
+            tree.findNeighbors(result, p.data(), nanoflann::SearchParams());
+            const std::size_t found = result.size();
+            Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+            int used = 0;
+            for (std::size_t i = 0; i < found; ++i) {
+                if (distance_sq[i] > max_radius_sq) continue;
+                mean += rays.endpoint(index[i]).cast<double>();
+                ++used;
+            }
+            if (used < 5) continue;
+            mean /= used;
+            Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+            for (std::size_t i = 0; i < found; ++i) {
+                if (distance_sq[i] > max_radius_sq) continue;
+                const Eigen::Vector3d d = rays.endpoint(index[i]).cast<double>() - mean;
+                covariance += d * d.transpose();
+            }
+            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+            eig.computeDirect(covariance);
+            const Eigen::Vector3d lambda = eig.eigenvalues();  // ascending
+            if (!(lambda(2) > 0.0)) continue;
+            if (lambda(0) > config.max_flatness * lambda(1)) continue;  // not a plane
+            if (lambda(1) < config.min_spread * lambda(2)) continue;    // a line
+            const Eigen::Vector3d normal = eig.eigenvectors().col(0);
+            const Eigen::Vector3d direction =
+                (p - rays.origin_of_ray(ray)).cast<double>().normalized();
+            const double cosine = std::abs(normal.dot(direction));
+            cosines[ray] = static_cast<float>(std::clamp<double>(cosine, config.min_cosine, 1.0));
+        }
+    });
+    return cosines;
+}
+
+}  // namespace shine
