@@ -1,0 +1,200 @@
+// `shine tsdf [DATA] -o OUT`: the VDBFusion baseline -- scans -> TSDF volume (tsdf.vdb) ->
+// mesh.ply, with stats.json, and metrics against a reference mesh when one is available.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "cli_common.hpp"
+#include "command_registry.hpp"
+#include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
+#include "shine/core/progress.hpp"
+#include "shine/eval/mesh_metrics.hpp"
+#include "shine/eval/metrics_report.hpp"
+#include "shine/io/ply.hpp"
+#include "shine/io/scan_sequence.hpp"
+#include "shine/sim/lidar_simulator.hpp"
+#include "shine/tsdf/tsdf_file.hpp"
+#include "shine/tsdf/tsdf_mapper.hpp"
+
+namespace shine::cli {
+namespace {
+namespace fs = std::filesystem;
+
+struct TsdfOptions {
+    std::string data;
+    std::string out = "out-tsdf";
+    TsdfMapperConfig config;
+    int threads = 0;
+    int first_frame = 0, last_frame = -1, frame_step = 1;
+    std::string poses_path;
+    std::string ref_path;
+    bool no_eval = false;
+    bool quiet = false;
+};
+
+std::size_t size_of(const fs::path& path) { return static_cast<std::size_t>(fs::file_size(path)); }
+
+int run_tsdf(const TsdfOptions& opt) {
+    const auto start_total = std::chrono::steady_clock::now();
+    Progress::set_globally_enabled(!opt.quiet);
+    const TsdfMapperConfig& config = opt.config;
+    config.validate();
+    auto thread_limit = limit_threads(opt.threads);
+
+    // Data: the bundled street unless a directory is given; simulated on first use.
+    fs::path data = opt.data;
+    if (data.empty()) {
+        data = bundled_example_dir();
+        if (!fs::exists(data / "poses.txt")) {
+            std::fprintf(stderr, "shine: simulating the bundled example street into %s\n",
+                         data.c_str());
+            sim::SimulationConfig sim_config;
+            sim_config.show_progress = !opt.quiet;
+            sim::simulate_sequence(sim_config, data);
+        }
+    }
+    ScanSequenceOptions seq_options;
+    seq_options.first_frame = opt.first_frame;
+    seq_options.last_frame = opt.last_frame;
+    seq_options.frame_step = opt.frame_step;
+    seq_options.poses_path = opt.poses_path;
+    const ScanSequence sequence = ScanSequence::open(data, seq_options);
+    fs::path ref = opt.ref_path;
+    if (ref.empty() && !opt.no_eval && fs::exists(data / "gt_mesh.ply")) ref = data / "gt_mesh.ply";
+    if (!ref.empty() && !fs::is_regular_file(ref)) {
+        throw IoError("reference mesh '" + ref.string() + "' does not exist");
+    }
+    const fs::path out = opt.out;
+    ensure_directory(out);
+
+    TsdfMapper mapper(config);
+    double read_seconds = 0.0;
+    {
+        Progress progress("tsdf", sequence.size());
+        for (std::size_t i = 0; i < sequence.size(); ++i) {
+            const auto t0 = std::chrono::steady_clock::now();
+            const Scan scan = sequence.load(i);
+            read_seconds += seconds_since(t0);
+            mapper.add_scan(scan);
+            progress.update(i + 1, std::to_string(mapper.stats().voxel_updates) + " updates");
+        }
+        progress.finish(std::to_string(mapper.stats().points) + " points, " +
+                        std::to_string(mapper.volume().active_voxels()) + " voxels");
+    }
+    const TsdfVolume& volume = mapper.volume();
+    const TsdfMappingStats& stats = mapper.stats();
+
+    auto t0 = std::chrono::steady_clock::now();
+    const TriangleMesh mesh = mapper.extract_mesh();
+    const double mesh_seconds = seconds_since(t0);
+
+    t0 = std::chrono::steady_clock::now();
+    write_tsdf_volume(out / "tsdf.vdb", volume);
+    write_ply_mesh(out / "mesh.ply", mesh);
+    const double save_seconds = seconds_since(t0);
+
+    const Eigen::Vector3d& origin = volume.origin_world_m();
+    nlohmann::json json;
+    json["method"] = "tsdf";
+    json["data"] = data.string();
+    json["frames"] = stats.frames;
+    json["points"] = stats.points;
+    json["threads"] = opt.threads;
+    json["parameters"] = {{"voxel_size_m", config.tsdf.voxel_size_m},
+                          {"trunc_m", config.tsdf.trunc_m},
+                          {"space_carving", config.tsdf.space_carving},
+                          {"min_weight", config.mesh.min_weight},
+                          {"fill_holes", config.mesh.fill_holes}};
+    json["preprocess"] = {{"input_points", stats.preprocess.input},
+                          {"dropped_nonfinite", stats.preprocess.dropped_nonfinite},
+                          {"dropped_zero_range", stats.preprocess.dropped_zero_range},
+                          {"dropped_range", stats.preprocess.dropped_range},
+                          {"dropped_box", stats.preprocess.dropped_box},
+                          {"dropped_downsample", stats.preprocess.dropped_downsample},
+                          {"output_points", stats.preprocess.output}};
+    json["origin_world_m"] = {origin.x(), origin.y(), origin.z()};
+    json["seconds"] = {{"read", read_seconds},
+                       {"preprocess", stats.preprocess_seconds},
+                       {"integrate", stats.integrate_seconds},
+                       {"mesh", mesh_seconds},
+                       {"save", save_seconds}};
+    const double per_frame =
+        stats.frames ? (stats.preprocess_seconds + stats.integrate_seconds) / stats.frames : 0.0;
+    json["seconds_per_frame"] = per_frame;
+    json["tsdf"] = {{"active_voxels", volume.active_voxels()},
+                    {"voxel_updates", stats.voxel_updates},
+                    {"tsdf_mem_bytes", volume.tsdf_memory_bytes()},
+                    {"weight_mem_bytes", volume.weight_memory_bytes()},
+                    {"mem_bytes", volume.memory_bytes()},
+                    {"file_bytes", size_of(out / "tsdf.vdb")}};
+    json["mesh"] = {{"vertices", mesh.vertices.size()},
+                    {"triangles", mesh.triangles.size()},
+                    {"file_bytes", size_of(out / "mesh.ply")}};
+
+    std::printf(
+        "integrated %zu frames (%zu points) in %.1f s: %.3f s/frame, TSDF + weight %.2f MB "
+        "(%zu voxels)\n",
+        stats.frames, stats.points, stats.preprocess_seconds + stats.integrate_seconds, per_frame,
+        volume.memory_bytes() / 1e6, volume.active_voxels());
+    std::printf("wrote %s, %s (%zu triangles)\n", (out / "tsdf.vdb").c_str(),
+                (out / "mesh.ply").c_str(), mesh.triangles.size());
+    if (!ref.empty()) {
+        t0 = std::chrono::steady_clock::now();
+        const MeshMetrics metrics = evaluate_meshes(mesh, read_ply_mesh(ref));
+        json["eval"] = nlohmann::json::parse(metrics_to_json(metrics));
+        json["eval"]["reference"] = ref.string();
+        json["seconds"]["eval"] = seconds_since(t0);
+        std::printf("accuracy against %s:\n%s", ref.c_str(), format_metrics(metrics).c_str());
+    }
+    json["seconds"]["total"] = seconds_since(start_total);
+    json["peak_rss_bytes"] = peak_rss_bytes();
+    write_stream_atomically(out / "stats.json",
+                            [&](std::ostream& os) { os << json.dump(2) << "\n"; });
+    return 0;
+}
+
+const RegisterCommand kRegister(60, [](CLI::App& app, Action& action) {
+    auto opt = std::make_shared<TsdfOptions>();
+    auto& c = opt->config;
+    CLI::App* cmd = app.add_subcommand(
+        "tsdf",
+        "Baseline: TSDF fusion with VDBFusion's algorithm into OUT/tsdf.vdb (grids tsdf, weight), "
+        "OUT/mesh.ply, OUT/stats.json (see docs/tsdf.md)");
+    cmd->add_option("data", opt->data,
+                    "Sequence directory (KITTI layout or .ply/.pcd scans with poses); default: the "
+                    "bundled example street, simulated on first use");
+    cmd->add_option("-o,--output", opt->out, "Output directory")->capture_default_str();
+    cmd->add_option("--voxel-size-m", c.tsdf.voxel_size_m, "Voxel edge, m (VDBFusion voxel_size)")
+        ->capture_default_str();
+    cmd->add_option("--trunc-m", c.tsdf.trunc_m,
+                    "Truncation distance, m (VDBFusion sdf_trunc; it uses 3 voxels)")
+        ->capture_default_str();
+    cmd->add_flag("--space-carving", c.tsdf.space_carving,
+                  "Update every voxel from the sensor to the point, not only the band");
+    cmd->add_option("--min-weight", c.mesh.min_weight,
+                    "Mesh only cubes whose 8 corners have at least this weight, i.e. this many "
+                    "updates (VDBFusion min_weight; 0.5 = observed at least once)")
+        ->capture_default_str();
+    cmd->add_flag("--fill-holes", c.mesh.fill_holes,
+                  "Let the mesher use unobserved corners (VDBFusion fill_holes; only has an "
+                  "effect with --min-weight 0)");
+    cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--first-frame", opt->first_frame, "First scan index")->capture_default_str();
+    cmd->add_option("--last-frame", opt->last_frame, "Last scan index, -1 = all")
+        ->capture_default_str();
+    cmd->add_option("--frame-step", opt->frame_step, "Use every n-th scan")->capture_default_str();
+    cmd->add_option("--poses", opt->poses_path, "Pose file (default: found in DATA)");
+    cmd->add_option("--ref", opt->ref_path,
+                    "Reference mesh to evaluate against (default: DATA/gt_mesh.ply if present)");
+    cmd->add_flag("--no-eval", opt->no_eval, "Skip the evaluation");
+    cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
+    cmd->callback([opt, &action] { action = [opt] { return run_tsdf(*opt); }; });
+});
+
+}  // namespace
+}  // namespace shine::cli

@@ -1,0 +1,56 @@
+#include "shine/tsdf/tsdf_mapper.hpp"
+
+#include <chrono>
+#include <cmath>
+
+namespace shine {
+namespace {
+double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+}  // namespace
+
+void TsdfMapperConfig::validate() const {
+    tsdf.validate();
+    mesh.validate();
+}
+
+namespace {
+const TsdfConfig& validated_tsdf_config(const TsdfMapperConfig& config) {
+    config.validate();
+    return config.tsdf;
+}
+}  // namespace
+
+TsdfMapper::TsdfMapper(const TsdfMapperConfig& config)
+    : config_(config), volume_(validated_tsdf_config(config)) {}
+
+void TsdfMapper::add_scan(const Scan& scan) {
+    auto start = std::chrono::steady_clock::now();
+    PreprocessStats pre;
+    const std::vector<Eigen::Vector3f> points_sensor =
+        preprocess_scan(scan.points_sensor, config_.preprocess, scan.source, &pre);
+    stats_.preprocess += pre;
+    if (!origin_set_) {
+        // BatchMapper's map frame: the world shifted by whole kilometres.
+        const Eigen::Vector3d t = scan.T_world_sensor.translation();
+        volume_.set_origin_world_m((t / 1000.0).array().round().matrix() * 1000.0);
+        origin_set_ = true;
+    }
+    Eigen::Isometry3d T_map_sensor = scan.T_world_sensor;
+    T_map_sensor.translation() -= volume_.origin_world_m();
+    std::vector<Eigen::Vector3d> points_map;
+    points_map.reserve(points_sensor.size());
+    for (const auto& p : points_sensor) points_map.push_back(T_map_sensor * p.cast<double>());
+    stats_.preprocess_seconds += seconds_since(start);
+
+    start = std::chrono::steady_clock::now();
+    stats_.voxel_updates += volume_.integrate(points_map, T_map_sensor.translation());
+    stats_.integrate_seconds += seconds_since(start);
+    stats_.points += points_map.size();
+    ++stats_.frames;
+}
+
+TriangleMesh TsdfMapper::extract_mesh() const { return extract_tsdf_mesh(volume_, config_.mesh); }
+
+}  // namespace shine
