@@ -1,10 +1,10 @@
-// Training samples along rays: projective labels on known rays, and the incidence correction.
+// Training samples along rays: projective labels on known rays, and labels from surface normals.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <vector>
 
-#include "shine/sampling/incidence.hpp"
+#include "shine/sampling/surface_normals.hpp"
 #include "shine/sampling/ray_sampler.hpp"
 #include "shine/sampling/ray_set.hpp"
 
@@ -19,7 +19,7 @@ TEST(RaySampler, LabelsAreProjectiveDistancesOnAKnownRay) {
     Pcg32 rng(7);
     for (int trial = 0; trial < 100; ++trial) {
         RaySample samples[6];
-        sample_ray(origin, endpoint, config, rng, samples);
+        sample_ray(origin, endpoint, Eigen::Vector3f::Zero(), config, rng, samples);
         for (int i = 0; i < config.samples_per_ray(); ++i) {
             const RaySample& s = samples[i];
             const float t = (s.point_map - origin).dot(direction);
@@ -38,17 +38,50 @@ TEST(RaySampler, LabelsAreProjectiveDistancesOnAKnownRay) {
     }
 }
 
-TEST(RaySampler, LabelScaleMultipliesEveryLabelWithoutMovingSamples) {
+TEST(RaySampler, WithANormalLabelsAreTangentPlaneDistances) {
+    // Ground z = 0 seen 25 m away from 1.7 m high: cos(incidence) = 1.7 / |ray|.
     const Eigen::Vector3f origin(0.0f, 0.0f, 1.7f);
     const Eigen::Vector3f endpoint(25.0f, 0.0f, 0.0f);
+    const Eigen::Vector3f up = Eigen::Vector3f::UnitZ();
+    const float cosine = 1.7f / (endpoint - origin).norm();
+    for (bool along_normal : {true, false}) {
+        SamplingConfig config;
+        config.surface_samples_along_normal = along_normal;
+        Pcg32 rng(3);
+        for (int trial = 0; trial < 50; ++trial) {
+            RaySample samples[6];
+            sample_ray(origin, endpoint, up, config, rng, samples);
+            for (int i = 0; i < config.samples_per_ray(); ++i) {
+                const RaySample& s = samples[i];
+                if (s.kind == SampleKind::kSurface) {
+                    // The label is the height above the ground plane, exactly.
+                    EXPECT_NEAR(s.sdf_label_m, s.point_map.z(), 1e-5f);
+                    EXPECT_LE(std::abs(s.sdf_label_m),
+                              config.surface_band_m * (along_normal ? 1.0f : cosine) + 1e-5f);
+                    if (along_normal) {
+                        EXPECT_NEAR(s.point_map.x(), endpoint.x(), 1e-6f);
+                    }
+                } else {
+                    // Free space: the projective distance times cos(incidence), which for a
+                    // plane is again the height above it.
+                    EXPECT_NEAR(s.sdf_label_m, s.point_map.z(), 1e-4f);
+                }
+            }
+        }
+    }
+}
+
+TEST(RaySampler, IncidenceScaleIsClampedForGrazingRays) {
+    const Eigen::Vector3f origin(0.0f, 0.0f, 0.1f);
+    const Eigen::Vector3f endpoint(50.0f, 0.0f, 0.0f);  // cos = 0.002
     SamplingConfig config;
-    Pcg32 rng_a(3), rng_b(3);
-    RaySample plain[6], scaled[6];
-    sample_ray(origin, endpoint, config, rng_a, plain);
-    sample_ray(origin, endpoint, config, rng_b, scaled, 0.25f);
-    for (int i = 0; i < config.samples_per_ray(); ++i) {
-        EXPECT_EQ(plain[i].point_map, scaled[i].point_map);
-        EXPECT_FLOAT_EQ(scaled[i].sdf_label_m, 0.25f * plain[i].sdf_label_m);
+    config.surface_samples = 0;
+    Pcg32 rng(5);
+    RaySample samples[3];
+    sample_ray(origin, endpoint, Eigen::Vector3f::UnitZ(), config, rng, samples);
+    for (const RaySample& s : samples) {
+        const float projective = (endpoint - s.point_map).norm();
+        EXPECT_NEAR(s.sdf_label_m, config.min_incidence_cosine * projective, 1e-4f);
     }
 }
 
@@ -69,21 +102,28 @@ RaySet ground_rays(const Eigen::Vector3f& origin, float spacing_m, float extent_
 
 }  // namespace
 
-TEST(Incidence, CosineOnAPlaneIsSensorHeightOverRange) {
+TEST(SurfaceNormals, PlaneNormalsPointToTheSensor) {
     const Eigen::Vector3f origin(0.0f, 0.0f, 1.7f);
     const RaySet rays = ground_rays(origin, 0.1f, 30.0f);
-    const std::vector<float> cosines = ray_incidence_cosines(rays, IncidenceConfig{});
-    ASSERT_EQ(cosines.size(), rays.num_rays());
+    const std::vector<Eigen::Vector3f> normals = estimate_ray_normals(rays, NormalConfig{});
+    ASSERT_EQ(normals.size(), rays.num_rays());
     double worst = 0.0;
-    for (std::size_t ray = 0; ray < rays.num_rays(); ++ray) {
-        const Eigen::Vector3f d = rays.endpoint(ray) - origin;
-        const float expected = std::max(1.7f / d.norm(), IncidenceConfig{}.min_cosine);
-        worst = std::max(worst, static_cast<double>(std::abs(cosines[ray] - expected)));
+    for (const Eigen::Vector3f& n : normals) {
+        worst = std::max(worst, static_cast<double>((n - Eigen::Vector3f::UnitZ()).norm()));
     }
     EXPECT_LT(worst, 1e-4);  // exact plane: PCA recovers the normal to rounding
+
+    // Seen from below, the same plane's normals flip.
+    RaySet from_below;
+    std::vector<Eigen::Vector3f> endpoints;
+    for (std::size_t ray = 0; ray < rays.num_rays(); ++ray) endpoints.push_back(rays.endpoint(ray));
+    from_below.add_scan(Eigen::Vector3f(0.0f, 0.0f, -2.0f), endpoints);
+    for (const Eigen::Vector3f& n : estimate_ray_normals(from_below, NormalConfig{})) {
+        EXPECT_LT((n + Eigen::Vector3f::UnitZ()).norm(), 1e-4f);
+    }
 }
 
-TEST(Incidence, NoCorrectionWhereTheNeighbourhoodIsALineOrTooSparse) {
+TEST(SurfaceNormals, NoNormalWhereTheNeighbourhoodIsALineOrTooSparse) {
     // A single scan line (points along x only) has no defined normal.
     std::vector<Eigen::Vector3f> line;
     for (int i = 0; i < 200; ++i) line.emplace_back(0.05f * i, 10.0f, 0.0f);
@@ -92,18 +132,20 @@ TEST(Incidence, NoCorrectionWhereTheNeighbourhoodIsALineOrTooSparse) {
     // Two isolated points far from everything: too few neighbours within the radius.
     rays.add_scan(Eigen::Vector3f::Zero(),
                   {Eigen::Vector3f(100.0f, 0.0f, 0.0f), Eigen::Vector3f(0.0f, 100.0f, 0.0f)});
-    for (float c : ray_incidence_cosines(rays, IncidenceConfig{})) EXPECT_EQ(c, 1.0f);
+    for (const Eigen::Vector3f& n : estimate_ray_normals(rays, NormalConfig{})) {
+        EXPECT_EQ(n, Eigen::Vector3f::Zero());
+    }
 }
 
-TEST(RaySet, LabelScalesDefaultToOneAndMustMatchTheRayCount) {
+TEST(RaySet, NormalsDefaultToZeroAndMustMatchTheRayCount) {
     RaySet rays;
     rays.add_scan(Eigen::Vector3f::Zero(), {Eigen::Vector3f(1, 0, 0), Eigen::Vector3f(0, 1, 0)});
-    EXPECT_EQ(rays.label_scale(1), 1.0f);
-    rays.set_label_scales({0.5f, 0.25f});
-    EXPECT_EQ(rays.label_scale(1), 0.25f);
-    EXPECT_THROW(rays.set_label_scales({0.5f}), std::exception);
-    // Rays added later start uncorrected.
+    EXPECT_EQ(rays.normal(1), Eigen::Vector3f::Zero());
+    rays.set_normals({-Eigen::Vector3f::UnitX(), -Eigen::Vector3f::UnitY()});
+    EXPECT_EQ(rays.normal(1), -Eigen::Vector3f::UnitY());
+    EXPECT_THROW(rays.set_normals({Eigen::Vector3f::UnitX()}), std::exception);
+    // Rays added later have no normal.
     rays.add_scan(Eigen::Vector3f::Zero(), {Eigen::Vector3f(0, 0, 1)});
-    EXPECT_EQ(rays.label_scale(2), 1.0f);
-    EXPECT_EQ(rays.label_scale(0), 0.5f);
+    EXPECT_EQ(rays.normal(2), Eigen::Vector3f::Zero());
+    EXPECT_EQ(rays.normal(0), -Eigen::Vector3f::UnitX());
 }

@@ -5,7 +5,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/mapper/trainer.hpp"
-#include "shine/sampling/incidence.hpp"
+#include "shine/sampling/surface_normals.hpp"
 
 namespace shine {
 namespace {
@@ -57,9 +57,7 @@ void BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
         throw DataError("no points left to map after preprocessing (check the range limits)");
     }
     auto start = std::chrono::steady_clock::now();
-    if (config_.incidence.enabled) {
-        rays_.set_label_scales(ray_incidence_cosines(rays_, config_.incidence));
-    }
+    if (config_.normals.enabled) rays_.set_normals(estimate_ray_normals(rays_, config_.normals));
     stats_.normals_seconds += seconds_since(start);
     start = std::chrono::steady_clock::now();
     Trainer trainer(*sdf_, config_.trainer, config_.sampling);

@@ -14,22 +14,22 @@ std::uint32_t RaySet::add_scan(const Eigen::Vector3f& origin_map,
     endpoints_.insert(endpoints_.end(), endpoints_map.begin(), endpoints_map.end());
     scan_of_ray_.insert(scan_of_ray_.end(), endpoints_map.size(), scan);
     scan_begin_.push_back(endpoints_.size());
-    if (!label_scales_.empty()) label_scales_.resize(endpoints_.size(), 1.0f);
+    if (!normals_.empty()) normals_.resize(endpoints_.size(), Eigen::Vector3f::Zero());
     return scan;
 }
 
-void RaySet::set_label_scales(std::vector<float> scales) {
-    if (!scales.empty() && scales.size() != endpoints_.size()) {
-        throw DataError("label scales: got " + std::to_string(scales.size()) + " for " +
+void RaySet::set_normals(std::vector<Eigen::Vector3f> normals) {
+    if (!normals.empty() && normals.size() != endpoints_.size()) {
+        throw DataError("ray normals: got " + std::to_string(normals.size()) + " for " +
                         std::to_string(endpoints_.size()) + " rays");
     }
-    label_scales_ = std::move(scales);
+    normals_ = std::move(normals);
 }
 
 std::size_t RaySet::memory_bytes() const {
     return endpoints_.capacity() * sizeof(Eigen::Vector3f) +
            scan_of_ray_.capacity() * sizeof(std::uint32_t) +
-           label_scales_.capacity() * sizeof(float) +
+           normals_.capacity() * sizeof(Eigen::Vector3f) +
            origins_.capacity() * sizeof(Eigen::Vector3f) +
            scan_begin_.capacity() * sizeof(std::size_t);
 }

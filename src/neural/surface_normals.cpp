@@ -1,4 +1,4 @@
-#include "shine/sampling/incidence.hpp"
+#include "shine/sampling/surface_normals.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -34,10 +34,10 @@ constexpr int kMaxNeighbors = 64;
 
 }  // namespace
 
-std::vector<float> ray_incidence_cosines(const RaySet& rays, const IncidenceConfig& config) {
+std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const NormalConfig& config) {
     const std::size_t n = rays.num_rays();
-    std::vector<float> cosines(n, 1.0f);
-    if (n < 3) return cosines;
+    std::vector<Eigen::Vector3f> normals(n, Eigen::Vector3f::Zero());
+    if (n < 3) return normals;
     const EndpointCloud cloud{rays};
     EndpointTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
     tree.buildIndex();
@@ -74,14 +74,12 @@ std::vector<float> ray_incidence_cosines(const RaySet& rays, const IncidenceConf
             if (!(lambda(2) > 0.0)) continue;
             if (lambda(0) > config.max_flatness * lambda(1)) continue;  // not a plane
             if (lambda(1) < config.min_spread * lambda(2)) continue;    // a line
-            const Eigen::Vector3d normal = eig.eigenvectors().col(0);
-            const Eigen::Vector3d direction =
-                (p - rays.origin_of_ray(ray)).cast<double>().normalized();
-            const double cosine = std::abs(normal.dot(direction));
-            cosines[ray] = static_cast<float>(std::clamp<double>(cosine, config.min_cosine, 1.0));
+            Eigen::Vector3d normal = eig.eigenvectors().col(0).normalized();
+            if (normal.dot((rays.origin_of_ray(ray) - p).cast<double>()) < 0.0) normal = -normal;
+            normals[ray] = normal.cast<float>();
         }
     });
-    return cosines;
+    return normals;
 }
 
 }  // namespace shine

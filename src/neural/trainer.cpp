@@ -91,8 +91,8 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         float* decoder_grads = train_decoder ? chunk.decoder_grads.data() : nullptr;
         for (int r = ray_lo; r < ray_hi; ++r) {
             const std::size_t ray = ray_begin + rng.below64(ray_end - ray_begin);
-            sample_ray(rays.origin_of_ray(ray), rays.endpoint(ray), sampling_, rng, samples,
-                       rays.label_scale(ray));
+            sample_ray(rays.origin_of_ray(ray), rays.endpoint(ray), rays.normal(ray), sampling_, rng,
+                       samples);
             for (int s = 0; s < per_ray; ++s) {
                 ++chunk.drawn;
                 if (!sample_loss_gradient(sdf_, lookup, ws, samples[s], loss_config, encoded,

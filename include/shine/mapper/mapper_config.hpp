@@ -11,7 +11,7 @@
 #include "shine/mapper/trainer.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/decoder.hpp"
-#include "shine/sampling/incidence.hpp"
+#include "shine/sampling/surface_normals.hpp"
 #include "shine/sampling/ray_sampler.hpp"
 
 namespace shine {
@@ -21,7 +21,7 @@ struct MapperConfig {
     FeatureOctreeConfig octree;
     DecoderConfig decoder;
     SamplingConfig sampling;
-    IncidenceConfig incidence;  ///< label correction for oblique rays
+    NormalConfig normals;  ///< endpoint normals for labels that are true distances
     TrainerConfig trainer;
     int iterations = 6000;                   ///< batch-mode optimisation steps
     float final_learning_rate_ratio = 0.1f;  ///< lr decays to this fraction (cosine) by the end

@@ -19,6 +19,10 @@ struct SamplingConfig {
     int free_samples = 3;                 ///< N_f per ray
     float surface_band_m = 0.3f;          ///< half-width of the surface band
     float free_space_start_ratio = 0.3f;  ///< free samples start at this fraction of the range
+    /// With a normal: surface samples along the normal instead of the ray (else only the
+    /// free-space labels are corrected for the incidence angle).
+    bool surface_samples_along_normal = true;
+    float min_incidence_cosine = 0.05f;  ///< labels shrink at most 1 / this for oblique rays
 
     int samples_per_ray() const { return surface_samples + free_samples; }
 };
@@ -34,10 +38,14 @@ struct RaySample {
 
 /// Writes config.samples_per_ray() samples of the ray origin -> endpoint into `out`
 /// (surface samples first). A ray shorter than the band gets free samples clamped to the origin.
-/// Labels are multiplied by `label_scale` (|cos(incidence)| turns them into tangent-plane
-/// distances, see incidence.hpp).
+///
+/// `normal` is the unit surface normal at the endpoint oriented towards the sensor, or zero if
+/// unknown (surface_normals.hpp). With a normal, labels become distances to the tangent plane:
+/// surface samples lie at endpoint + d * normal with label d (or along the ray with the
+/// projective label times |cos(incidence)|), and free-space labels are scaled by
+/// |cos(incidence)|, clamped below at min_incidence_cosine.
 void sample_ray(const Eigen::Vector3f& origin_map, const Eigen::Vector3f& endpoint_map,
-                const SamplingConfig& config, Pcg32& rng, RaySample* out,
-                float label_scale = 1.0f);
+                const Eigen::Vector3f& normal, const SamplingConfig& config, Pcg32& rng,
+                RaySample* out);
 
 }  // namespace shine

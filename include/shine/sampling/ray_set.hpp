@@ -21,13 +21,14 @@ class RaySet {
         return origins_[scan_of_ray_[ray]];
     }
     std::uint32_t scan_of_ray(std::size_t ray) const { return scan_of_ray_[ray]; }
-    /// Factor applied to the projective labels of the ray's samples (1 unless set).
-    float label_scale(std::size_t ray) const {
-        return label_scales_.empty() ? 1.0f : label_scales_[ray];
+    /// Unit surface normal at the ray's endpoint, oriented towards the sensor; zero when unknown
+    /// (the default; see surface_normals.hpp).
+    Eigen::Vector3f normal(std::size_t ray) const {
+        return normals_.empty() ? Eigen::Vector3f::Zero() : normals_[ray];
     }
-    /// One factor per ray (e.g. |cos(incidence)|, see incidence.hpp); an empty vector resets
-    /// every factor to 1. Throws DataError if the size is neither 0 nor num_rays().
-    void set_label_scales(std::vector<float> scales);
+    /// One normal per ray; an empty vector forgets them all. Throws DataError if the size is
+    /// neither 0 nor num_rays().
+    void set_normals(std::vector<Eigen::Vector3f> normals);
     /// First ray of scan s (rays of a scan are contiguous); first_ray(num_scans()) = num_rays().
     std::size_t first_ray(std::uint32_t scan) const { return scan_begin_[scan]; }
     std::size_t memory_bytes() const;
@@ -35,7 +36,7 @@ class RaySet {
   private:
     std::vector<Eigen::Vector3f> endpoints_;
     std::vector<std::uint32_t> scan_of_ray_;
-    std::vector<float> label_scales_;
+    std::vector<Eigen::Vector3f> normals_;
     std::vector<Eigen::Vector3f> origins_;
     std::vector<std::size_t> scan_begin_{0};
 };

@@ -1,16 +1,18 @@
-// How squarely each ray meets the surface it hit, from local surface normals.
+// Surface normals at the ray endpoints, for labels that agree with the Eikonal term.
 //
-// A projective label (the distance along the ray) overstates the true distance to the surface by
-// 1 / cos(incidence): on ground seen 25 m away from a sensor 1.7 m high a sample 0.3 m behind the
-// hit is only 2 cm below the ground. Labels that disagree with the Eikonal term by a factor of
-// ten bend the learned surface towards the sensor at every scan line, which shows as ripples
-// between the lines. Scaling the label by |cos(incidence)| turns it into the distance to the
-// local tangent plane, which agrees with both losses.
+// A projective label (the distance along the ray) overstates the distance to the surface by
+// 1 / cos(incidence): on ground 25 m away from a sensor 1.7 m high, a sample 0.3 m behind the hit
+// along the ray is only 2 cm below the ground. Labels that disagree with the Eikonal term by a
+// factor of ten bend the learned surface towards the sensor at every scan line, which shows as
+// ripples between the lines; and a band that is 2 cm thick across the surface leaves the space
+// just behind it unconstrained. With a normal, the sampler places surface samples along the
+// normal (labels are then true distances to the tangent plane) and scales free-space labels by
+// |cos(incidence)| (ray_sampler.hpp).
 //
 // Normals come from a principal component analysis of the k nearest endpoints of all rays (in
 // batch mode the scans together cover the gaps between one scan's lines). Where the neighbourhood
-// is not a plane (too few points, a line of points along one scan line, a corner), the cosine is
-// 1: the label stays projective.
+// is not a plane (too few points, a single scan line, a corner), there is no normal and the
+// ray's labels stay projective.
 #pragma once
 
 #include <Eigen/Core>
@@ -20,20 +22,19 @@
 
 namespace shine {
 
-struct IncidenceConfig {
-    bool enabled = true;          ///< false: plain projective labels
-    int neighbors = 16;           ///< k nearest endpoints for the normal
-    float max_radius_m = 1.0f;    ///< neighbours farther than this are not used
-    float min_cosine = 0.05f;     ///< lower clamp of |cos(incidence)| (labels shrink at most 20x)
-    /// A neighbourhood counts as planar when its smallest covariance eigenvalue is below this
-    /// fraction of the middle one, and the middle one is at least this fraction of the largest
-    /// (so that a single scan line, which is a line, gives no normal).
+struct NormalConfig {
+    bool enabled = true;        ///< false: plain projective labels along the rays
+    int neighbors = 16;         ///< k nearest endpoints for the normal
+    float max_radius_m = 1.0f;  ///< neighbours farther than this are not used
+    /// A neighbourhood counts as planar when its smallest covariance eigenvalue is below
+    /// max_flatness times the middle one, and the middle one is at least min_spread times the
+    /// largest (so that a single scan line, which is a line, gives no normal).
     float max_flatness = 0.1f;
     float min_spread = 0.05f;
 };
 
-/// |cos| between each ray of `rays` and the surface normal at its endpoint, in [min_cosine, 1];
-/// 1 where no normal could be estimated. Parallel; deterministic.
-std::vector<float> ray_incidence_cosines(const RaySet& rays, const IncidenceConfig& config);
+/// Unit normal at each ray's endpoint, oriented towards the ray's sensor; the zero vector where
+/// no normal could be estimated. Parallel; deterministic.
+std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const NormalConfig& config);
 
 }  // namespace shine
