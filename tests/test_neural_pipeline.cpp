@@ -186,3 +186,21 @@ TEST(BakeAndMesh, AnalyticPlaneAndSphereWithSubVoxelError) {
     ASSERT_GT(near_sphere, 100);
     EXPECT_GT(outward, kMinOutwardShare * near_sphere);
 }
+
+TEST(MapperConfig, AutoIterationsScaleInverselyWithTheLeafSize) {
+    MapperConfig config;
+    EXPECT_EQ(config.iterations, -1);
+    EXPECT_EQ(config.batch_iterations(), 6000);  // default 0.2 m leaf
+    config.octree.leaf_size_m = 0.1;
+    EXPECT_EQ(config.batch_iterations(), 12000);
+    config.octree.leaf_size_m = 1.0;
+    EXPECT_EQ(config.batch_iterations(), 1200);
+    config.octree.leaf_size_m = 0.001;
+    EXPECT_EQ(config.batch_iterations(), 50000);  // clamped
+    config.iterations = 0;                        // explicit values are kept, 0 included
+    EXPECT_EQ(config.batch_iterations(), 0);
+    // The YAML form accepts -1 (auto) and rejects anything below.
+    parse_config_yaml("training:\n  iterations: -1\n", "test", config);
+    EXPECT_EQ(config.iterations, -1);
+    EXPECT_THROW(parse_config_yaml("training:\n  iterations: -2\n", "test", config), ConfigError);
+}

@@ -63,7 +63,7 @@ void BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
     Trainer trainer(*sdf_, config_.trainer, config_.sampling);
     const float lr0 = config_.trainer.feature_adam.learning_rate;
     const float dlr0 = config_.trainer.decoder_adam.learning_rate;
-    const int iterations = config_.iterations;
+    const int iterations = config_.batch_iterations();
     TrainStepStats last;
     double bce_avg = 0.0;
     for (int it = 0; it < iterations; ++it) {

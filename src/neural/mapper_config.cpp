@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -117,7 +118,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"normal_neighbors", number(c.normals.neighbors, 5, 64)},
           {"normal_radius_m", number(c.normals.max_radius_m, 1e-3, 100.0)}}},
         {"training",
-         {{"iterations", number(c.iterations, 0, 10000000)},
+         {{"iterations", number(c.iterations, -1, 10000000)},
           {"batch_size", number(c.trainer.batch_size, 1, 1 << 22)},
           {"sigma_m", number(c.trainer.sigma_m, 1e-4, 10.0)},
           {"eikonal_weight", number(c.trainer.eikonal_weight, 0.0, 100.0)},
@@ -137,6 +138,12 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
 }
 
 }  // namespace
+
+int MapperConfig::batch_iterations() const {
+    if (iterations >= 0) return iterations;
+    const double scaled = 6000.0 * 0.2 / octree.leaf_size_m;
+    return static_cast<int>(std::lround(std::clamp(scaled, 1000.0, 50000.0)));
+}
 
 void MapperConfig::finalize() {
     decoder.input_dim = octree.feature_dim;

@@ -23,12 +23,18 @@ struct MapperConfig {
     SamplingConfig sampling;
     NormalConfig normals;  ///< endpoint normals for labels that are true distances
     TrainerConfig trainer;
-    int iterations = 6000;                   ///< batch-mode optimisation steps
+    /// Batch-mode optimisation steps; -1 (the default) = auto, batch_iterations().
+    int iterations = -1;
     float final_learning_rate_ratio = 0.1f;  ///< lr decays to this fraction (cosine) by the end
     BakeConfig bake;
     MeshConfig mesh;
     int threads = 0;          ///< 0: all hardware threads
     std::uint64_t seed = 42;  ///< one seed for features, decoder and sampling
+
+    /// Steps batch mode runs: `iterations`, or for auto 6000 at the default 0.2 m leaf, scaled
+    /// by 0.2 m / leaf_size_m (finer maps have more features to fit; 12,000 at 0.1 m), within
+    /// [1000, 50000].
+    int batch_iterations() const;
 
     /// Copies feature_dim/seed into the sub-configs that repeat them, and checks ranges.
     void finalize();
