@@ -187,14 +187,14 @@ TEST(BakeAndMesh, AnalyticPlaneAndSphereWithSubVoxelError) {
     EXPECT_GT(outward, kMinOutwardShare * near_sphere);
 }
 
-TEST(MapperConfig, AutoIterationsScaleInverselyWithTheLeafSize) {
+TEST(MapperConfig, AutoIterationsGrowForLeavesFinerThanTheDefault) {
     MapperConfig config;
     EXPECT_EQ(config.iterations, -1);
     EXPECT_EQ(config.batch_iterations(), 6000);  // default 0.2 m leaf
     config.octree.leaf_size_m = 0.1;
-    EXPECT_EQ(config.batch_iterations(), 12000);
+    EXPECT_EQ(config.batch_iterations(), 16971);
     config.octree.leaf_size_m = 1.0;
-    EXPECT_EQ(config.batch_iterations(), 1200);
+    EXPECT_EQ(config.batch_iterations(), 6000);  // coarse maps keep the default
     config.octree.leaf_size_m = 0.001;
     EXPECT_EQ(config.batch_iterations(), 50000);  // clamped
     config.iterations = 0;                        // explicit values are kept, 0 included

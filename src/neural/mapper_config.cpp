@@ -141,8 +141,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
 
 int MapperConfig::batch_iterations() const {
     if (iterations >= 0) return iterations;
-    const double scaled = 6000.0 * 0.2 / octree.leaf_size_m;
-    return static_cast<int>(std::lround(std::clamp(scaled, 1000.0, 50000.0)));
+    const double scaled = 6000.0 * std::pow(0.2 / octree.leaf_size_m, 1.5);
+    return static_cast<int>(std::lround(std::clamp(scaled, 6000.0, 50000.0)));
 }
 
 void MapperConfig::finalize() {

@@ -31,9 +31,9 @@ struct MapperConfig {
     int threads = 0;          ///< 0: all hardware threads
     std::uint64_t seed = 42;  ///< one seed for features, decoder and sampling
 
-    /// Steps batch mode runs: `iterations`, or for auto 6000 at the default 0.2 m leaf, scaled
-    /// by 0.2 m / leaf_size_m (finer maps have more features to fit; 12,000 at 0.1 m), within
-    /// [1000, 50000].
+    /// Steps batch mode runs: `iterations`, or for auto 6000 at the default 0.2 m leaf and
+    /// 6000 * (0.2 m / leaf_size_m)^1.5 for finer leaves (a surface map has ~4x the features per
+    /// halving of the leaf; 17,000 at 0.1 m), at most 50,000.
     int batch_iterations() const;
 
     /// Copies feature_dim/seed into the sub-configs that repeat them, and checks ranges.
