@@ -140,21 +140,80 @@ TEST(BadInput, FewerPosesThanScans) {
     expect_no_outputs(out);
 }
 
-TEST(BadInput, NonFinitePoints) {
-    const fs::path data = copy_of_street("nan_points");
-    {
-        std::fstream f(data / "velodyne" / "000001.bin",
-                       std::ios::in | std::ios::out | std::ios::binary);
-        const float bad[4] = {std::numeric_limits<float>::quiet_NaN(), 1.0f,
-                              std::numeric_limits<float>::infinity(), 0.0f};
-        f.seekp(16 * 100);
-        f.write(reinterpret_cast<const char*>(bad), sizeof(bad));
+namespace {
+
+// Writes a NaN/inf point over point 100 of `bin` (a sensor's "no return").
+void inject_non_finite_point(const fs::path& bin) {
+    std::fstream f(bin, std::ios::in | std::ios::out | std::ios::binary);
+    const float bad[4] = {std::numeric_limits<float>::quiet_NaN(), 1.0f,
+                          std::numeric_limits<float>::infinity(), 0.0f};
+    f.seekp(16 * 100);
+    f.write(reinterpret_cast<const char*>(bad), sizeof(bad));
+}
+
+// Replaces the points of `bin` by `count` invalid ones (NaN, infinite and zero-range).
+void write_invalid_scan(const fs::path& bin, int count) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float inf = std::numeric_limits<float>::infinity();
+    std::ofstream f(bin, std::ios::binary | std::ios::trunc);
+    for (int i = 0; i < count; ++i) {
+        const float point[4] = {i % 3 == 0 ? nan : 0.0f, i % 3 == 1 ? -inf : 0.0f, 0.0f, 0.0f};
+        f.write(reinterpret_cast<const char*>(point), sizeof(point));
     }
+}
+
+}  // namespace
+
+TEST(BadInput, NonFinitePointsAreDroppedAndCounted) {
+    const fs::path data = copy_of_street("nan_points");
+    inject_non_finite_point(data / "velodyne" / "000001.bin");
+    // A scan with only invalid points, and an empty scan (a sensor that returned nothing).
+    write_invalid_scan(data / "velodyne" / "000003.bin", 1000);
+    std::ofstream(data / "velodyne" / "000004.bin", std::ios::binary | std::ios::trunc).close();
     const fs::path out = test_dir() / "out_nan";
     fs::remove_all(out);
     const Result r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    std::ifstream in(out / "stats.json");
+    const nlohmann::json stats = nlohmann::json::parse(in);
+    EXPECT_EQ(stats.at("frames").get<int>(), 6);
+    // 1 injected + 2 of every 3 in the invalid scan are non-finite; the rest are zero-range.
+    EXPECT_EQ(stats.at("preprocess").at("dropped_nonfinite").get<int>(), 1 + 667);
+    EXPECT_GE(stats.at("preprocess").at("dropped_zero_range").get<int>(), 333);
+}
+
+TEST(BadInput, NonFinitePointsFailUnderTheErrorPolicy) {
+    const fs::path data = copy_of_street("nan_points_error");
+    inject_non_finite_point(data / "velodyne" / "000001.bin");
+    const fs::path config = test_dir() / "invalid_points_error.yaml";
+    std::ofstream(config) << "preprocess:\n  invalid_points: error\n";
+    const fs::path out = test_dir() / "out_nan_error";
+    fs::remove_all(out);
+    const Result r = run("map " + data.string() + " -o " + out.string() + " -c " + config.string() +
+                         " -q --iterations 10");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("000001.bin"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("point 100"), std::string::npos) << r.output;
+    expect_no_outputs(out);
+}
+
+TEST(BadInput, SequenceWithoutAnyValidPoint) {
+    const fs::path data = copy_of_street("no_valid_points");
+    int scan = 0;
+    for (const auto& e : fs::directory_iterator(data / "velodyne")) {
+        // Half the scans empty, half holding only invalid points.
+        if (scan++ % 2 == 0) {
+            std::ofstream(e.path(), std::ios::binary | std::ios::trunc).close();
+        } else {
+            write_invalid_scan(e.path(), 10);
+        }
+    }
+    const fs::path out = test_dir() / "out_no_valid_points";
+    fs::remove_all(out);
+    const Result r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
+    EXPECT_NE(r.exit_code, 0);
+    EXPECT_EQ(r.output.find("internal error"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("no points left"), std::string::npos) << r.output;
     expect_no_outputs(out);
 }
 

@@ -1,11 +1,14 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <string>
+#include <string_view>
 
 #include "shine/core/error.hpp"
 #include "shine/io/kitti.hpp"
@@ -85,16 +88,42 @@ TEST(KittiBin, ReadsHandMadeFileAndDropsIntensity) {
     EXPECT_EQ(points[1], Eigen::Vector3f(10.0f, 20.0f, 30.0f));
 }
 
-TEST(KittiBin, ErrorsNameTheFile) {
+TEST(KittiBin, ErrorsNameTheFileAndTheByteOffset) {
     const fs::path dir = test_dir("bin_errors");
     expect_io_error([&] { shine::read_kitti_bin(dir / "missing.bin"); }, dir / "missing.bin",
                     "does not exist");
-    write_bytes(dir / "empty.bin", "");
-    expect_io_error([&] { shine::read_kitti_bin(dir / "empty.bin"); }, dir / "empty.bin", "empty");
+    // 40 bytes: two whole points, then 8 bytes of a third starting at byte 32.
     write_bytes(dir / "odd.bin", std::string(40, '\0'));
     expect_io_error([&] { shine::read_kitti_bin(dir / "odd.bin"); }, dir / "odd.bin",
-                    "not a multiple of 16");
+                    "byte offset 32: size 40 bytes is not a multiple of 16");
+    expect_io_error([&] { shine::read_kitti_bin(dir / "odd.bin"); }, dir / "odd.bin",
+                    "the last record has only 8 bytes");
+    write_bytes(dir / "tiny.bin", "abc");
+    expect_io_error([&] { shine::read_kitti_bin(dir / "tiny.bin"); }, dir / "tiny.bin",
+                    "byte offset 0");
     expect_io_error([&] { shine::read_kitti_bin(dir); }, dir, "directory");
+}
+
+TEST(KittiBin, EmptyFileIsAScanWithoutPoints) {
+    // A sensor may return nothing (blocked, spinning up): valid data, not an error.
+    const fs::path path = test_dir("bin_empty") / "000000.bin";
+    write_bytes(path, "");
+    EXPECT_TRUE(shine::read_kitti_bin(path).empty());
+    shine::write_kitti_bin(path, {});
+    EXPECT_EQ(fs::file_size(path), 0u);
+    EXPECT_TRUE(shine::read_kitti_bin(path).empty());
+}
+
+TEST(KittiBin, NonFinitePointsAreReturnedAsStored) {
+    // Filtering NaN and infinite points is preprocess_scan's job; the reader must not hide them.
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float inf = std::numeric_limits<float>::infinity();
+    const float data[8] = {nan, 1.0f, 2.0f, 0.0f, 0.0f, -inf, 0.0f, 0.0f};
+    const auto points = shine::parse_kitti_bin(
+        std::string_view(reinterpret_cast<const char*>(data), sizeof(data)), "mem.bin");
+    ASSERT_EQ(points.size(), 2u);
+    EXPECT_TRUE(std::isnan(points[0].x()));
+    EXPECT_EQ(points[1].y(), -inf);
 }
 
 TEST(KittiPoses, RoundTripKeepsFullPrecision) {
@@ -146,9 +175,42 @@ TEST(KittiPoses, ErrorsNameFileAndLine) {
                     "empty");
     write_bytes(dir / "blank.txt", "\n  \n");
     expect_io_error([&] { shine::read_kitti_poses(dir / "blank.txt"); }, dir / "blank.txt",
-                    "no poses");
+                    "no poses (2 blank lines)");
+    write_bytes(dir / "inf.txt", std::string(kIdentityLine) + "1 0 0 0 0 1 0 -inf 0 0 1 0\n");
+    expect_io_error([&] { shine::read_kitti_poses(dir / "inf.txt"); }, dir / "inf.txt",
+                    "line 2: contains a non-finite value");
     expect_io_error([&] { shine::read_kitti_poses(dir / "missing.txt"); }, dir / "missing.txt",
                     "does not exist");
+}
+
+TEST(KittiPoses, GarbageGivesAShortPrintableMessage) {
+    const fs::path dir = test_dir("poses_garbage");
+    // A binary file passed as poses: one 1 MB "word" of non-ASCII bytes and no blank or newline.
+    std::string garbage;
+    for (int i = 0; i < (1 << 20); ++i) garbage += static_cast<char>(0x80 + i % 128);
+    garbage[0] = '\x7f';
+    write_bytes(dir / "garbage.txt", garbage);
+    try {
+        shine::read_kitti_poses(dir / "garbage.txt");
+        FAIL() << "expected IoError";
+    } catch (const shine::IoError& e) {
+        const std::string msg = e.what();
+        EXPECT_NE(msg.find("line 1: '\\x7f\\x81\\x82"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("...' is not a number"), std::string::npos) << msg;
+        EXPECT_LT(msg.size(), 400u) << "the message quotes the whole line";
+    }
+}
+
+TEST(KittiPoses, ParsesTextInMemory) {
+    const auto poses = shine::parse_kitti_poses(kIdentityLine, "memory");
+    ASSERT_EQ(poses.size(), 1u);
+    EXPECT_TRUE(poses[0].matrix().isIdentity());
+    try {
+        shine::parse_kitti_poses("", "memory");
+        FAIL() << "expected IoError";
+    } catch (const shine::IoError& e) {
+        EXPECT_NE(std::string(e.what()).find("'memory'"), std::string::npos) << e.what();
+    }
 }
 
 TEST(KittiCalib, ReadsTrAmongProjectionMatrices) {
@@ -181,4 +243,26 @@ TEST(KittiCalib, ErrorsNameFileAndLine) {
                     "line 2");
     expect_io_error([&] { shine::read_kitti_calib_tr(dir / "missing.txt"); }, dir / "missing.txt",
                     "does not exist");
+    write_bytes(dir / "two_tr.txt",
+                std::string("Tr: ") + kIdentityLine + "Tr_velo_to_cam: " + kIdentityLine);
+    expect_io_error([&] { shine::read_kitti_calib_tr(dir / "two_tr.txt"); }, dir / "two_tr.txt",
+                    "line 2: second Tr line");
+    write_bytes(dir / "word_tr.txt", "P0: 1\nP1: 2\nTr: 1 0 0 0 0 1 0 0 0 0 1 zero\n");
+    expect_io_error([&] { shine::read_kitti_calib_tr(dir / "word_tr.txt"); }, dir / "word_tr.txt",
+                    "line 3: 'zero' is not a number");
+    write_bytes(dir / "skew_tr.txt", "Tr: 1 0 0 0 0.5 1 0 0 0 0 1 0\n");
+    expect_io_error([&] { shine::read_kitti_calib_tr(dir / "skew_tr.txt"); }, dir / "skew_tr.txt",
+                    "line 1: rotation is not orthonormal");
+    write_bytes(dir / "empty.txt", "");
+    expect_io_error([&] { shine::read_kitti_calib_tr(dir / "empty.txt"); }, dir / "empty.txt",
+                    "empty");
+    write_bytes(dir / "three_lines.txt", "a\nb\nc\n");
+    expect_io_error([&] { shine::read_kitti_calib_tr(dir / "three_lines.txt"); },
+                    dir / "three_lines.txt", "no 'Tr:' line among its 3 lines");
+}
+
+TEST(KittiCalib, AcceptsBlanksAroundTheKey) {
+    const Eigen::Isometry3d Tr =
+        shine::parse_kitti_calib_tr("  Tr : 1 0 0 5 0 1 0 6 0 0 1 7\r\n", "calib.txt");
+    EXPECT_EQ(Tr.translation(), Eigen::Vector3d(5, 6, 7));
 }

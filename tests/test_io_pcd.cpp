@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -368,4 +369,56 @@ TEST(PcdErrors, EveryTruncationAndByteFlipGivesIoErrorOrPoints) {
         // Prefixes that cut the data are errors; only a cut trailing newline may still parse.
         EXPECT_GE(failures, static_cast<int>(original.size()) - 1);
     }
+}
+
+TEST(PcdErrors, HeaderValuesNameTheirOwnLine) {
+    const fs::path dir = test_dir("errors_lines");
+    write_bytes(dir / "size.pcd",
+                "# c\nFIELDS x y z\nSIZE 4 3 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n");
+    expect_io_error([&] { shine::read_pcd_points(dir / "size.pcd"); }, dir / "size.pcd",
+                    "line 3: SIZE of field 'y' is '3'");
+    write_bytes(dir / "type.pcd",
+                "FIELDS x y z\nSIZE 4 4 4\nTYPE F F Q\nWIDTH 1\nDATA ascii\n1 2 3\n");
+    expect_io_error([&] { shine::read_pcd_points(dir / "type.pcd"); }, dir / "type.pcd",
+                    "line 3: TYPE of field 'z' is 'Q'");
+    write_bytes(dir / "count.pcd",
+                "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 0\nWIDTH 1\nDATA ascii\n1 2 3\n");
+    expect_io_error([&] { shine::read_pcd_points(dir / "count.pcd"); }, dir / "count.pcd",
+                    "line 4: COUNT of field 'z' is '0'");
+    write_bytes(dir / "points.pcd",
+                "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nHEIGHT 1\nPOINTS 3\nDATA ascii\n");
+    expect_io_error([&] { shine::read_pcd_points(dir / "points.pcd"); }, dir / "points.pcd",
+                    "line 6: POINTS 3 differs from WIDTH * HEIGHT = 2");
+    write_bytes(dir / "no_data.pcd", "FIELDS x y z\nSIZE 4 4 4\n");
+    expect_io_error([&] { shine::read_pcd_points(dir / "no_data.pcd"); }, dir / "no_data.pcd",
+                    "header (lines 1-2): ends without a DATA line");
+    write_bytes(dir / "garbage.pcd", "\xff\xfe\x01junk\n");
+    expect_io_error([&] { shine::read_pcd_points(dir / "garbage.pcd"); }, dir / "garbage.pcd",
+                    "line 1: unknown header keyword '\\xff\\xfe\\x01junk'");
+}
+
+TEST(PcdErrors, HugeCountsFailFastWithoutAllocating) {
+    const fs::path dir = test_dir("errors_tera");
+    const auto start = std::chrono::steady_clock::now();
+    for (const char* encoding : {"ascii", "binary", "binary_compressed"}) {
+        SCOPED_TRACE(encoding);
+        const std::string name = std::string("tera_") + encoding + ".pcd";
+        const std::string header =
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1000000000000\nDATA " +
+            std::string(encoding) + "\n";
+        write_bytes(dir / name, header + "0123456789ab0123456789ab");
+        // Ascii names the first data line, binary the first data byte.
+        expect_io_error([&] { shine::read_pcd_points(dir / name); }, dir / name,
+                        std::string(encoding) == "ascii"
+                            ? "line 6: header declares 1000000000000 points"
+                            : "byte offset " + std::to_string(header.size()));
+    }
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
+}
+
+TEST(Pcd, ParsesBytesInMemory) {
+    const auto points = shine::parse_pcd_points(
+        "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nDATA ascii\n1 2 3\n4 5 6", "memory.pcd");
+    ASSERT_EQ(points.size(), 2u);
+    EXPECT_EQ(points[1], Eigen::Vector3f(4, 5, 6));
 }

@@ -1,10 +1,12 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <string>
 
@@ -420,4 +422,78 @@ TEST(PlyErrors, EveryTruncationAndByteFlipGivesIoErrorOrAMesh) {
     }
     // All strict prefixes are broken files; they must all have been reported.
     EXPECT_GE(failures, static_cast<int>(files[0].size() + files[1].size()) - 2);
+}
+
+TEST(PlyErrors, NonFiniteMeshVerticesNameTheVertexAndPlace) {
+    const fs::path dir = test_dir("errors_nonfinite");
+    write_bytes(dir / "nan_vertex.ply",
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                "end_header\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n");
+    expect_io_error([&] { shine::read_ply_mesh(dir / "nan_vertex.ply"); }, dir / "nan_vertex.ply",
+                    "line 11: vertex 1 has a non-finite coordinate");
+    // The same file as a point cloud: NaN is a scan's "no return", returned for preprocess_scan.
+    const auto points = shine::read_ply_points(dir / "nan_vertex.ply");
+    ASSERT_EQ(points.size(), 3u);
+    EXPECT_TRUE(std::isnan(points[1].y()));
+
+    std::string bytes =
+        "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
+        "property float y\nproperty float z\nend_header\n";
+    const std::size_t header_bytes = bytes.size();
+    for (float c : {1.0f, 2.0f, 3.0f, 4.0f, std::numeric_limits<float>::infinity(), 6.0f}) {
+        put<float>(bytes, c, false);
+    }
+    write_bytes(dir / "inf_vertex.ply", bytes);
+    expect_io_error([&] { shine::read_ply_mesh(dir / "inf_vertex.ply"); }, dir / "inf_vertex.ply",
+                    "byte offset " + std::to_string(header_bytes + 12) + ": vertex 1");
+}
+
+TEST(PlyErrors, AsciiDataBeyondTheDeclaredCountsIsRejected) {
+    const fs::path dir = test_dir("errors_counts");
+    // Four vertex lines for a header that declares three: the fourth would be read as a face.
+    write_bytes(dir / "extra_vertex.ply",
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n");
+    expect_io_error([&] { shine::read_ply_points(dir / "extra_vertex.ply"); },
+                    dir / "extra_vertex.ply", "line 11: '0 0 1\\x0a' after the last element");
+    expect_io_error([&] { shine::read_ply_mesh(dir / "extra_vertex.ply"); },
+                    dir / "extra_vertex.ply", "more values than the header's element counts");
+    // Fewer lines than declared.
+    write_bytes(dir / "missing_vertex.ply",
+                "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n");
+    expect_io_error([&] { shine::read_ply_points(dir / "missing_vertex.ply"); },
+                    dir / "missing_vertex.ply", "truncated");
+    // Binary: a header declaring 10^12 vertices fails at once, naming the header line.
+    write_bytes(dir / "tera.ply",
+                "ply\nformat binary_little_endian 1.0\ncomment x\nelement vertex 1000000000000\n"
+                "property float x\nproperty float y\nproperty float z\nend_header\n0123456789AB");
+    const auto start = std::chrono::steady_clock::now();
+    expect_io_error([&] { shine::read_ply_points(dir / "tera.ply"); }, dir / "tera.ply",
+                    "line 4: header declares 1000000000000 'vertex' entries");
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
+}
+
+TEST(PlyErrors, HeaderGarbageIsQuotedPrintably) {
+    const fs::path dir = test_dir("errors_garbage");
+    write_bytes(dir / "keyword.ply", "ply\nformat ascii 1.0\n\x01\x02\xfe stuff\n");
+    expect_io_error([&] { shine::read_ply_points(dir / "keyword.ply"); }, dir / "keyword.ply",
+                    "line 3: unknown header keyword '\\x01\\x02\\xfe'");
+    write_bytes(dir / "no_format.ply", "ply\ncomment a\nelement vertex 0\nend_header\n");
+    expect_io_error([&] { shine::read_ply_points(dir / "no_format.ply"); }, dir / "no_format.ply",
+                    "header (lines 1-4): has no 'format' line");
+    write_bytes(dir / "no_vertex.ply", "ply\nformat ascii 1.0\nelement face 0\nend_header\n");
+    expect_io_error([&] { shine::read_ply_points(dir / "no_vertex.ply"); }, dir / "no_vertex.ply",
+                    "header (lines 1-4): has no 'vertex' element");
+}
+
+TEST(PlyPoints, ParsesBytesInMemory) {
+    const std::string text =
+        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+        "property float z\nend_header\n1 2 3\n4 5 6\n";
+    const auto points = shine::parse_ply_points(text, "memory.ply");
+    ASSERT_EQ(points.size(), 2u);
+    EXPECT_EQ(points[1], Eigen::Vector3f(4, 5, 6));
+    EXPECT_EQ(shine::parse_ply_mesh(text, "memory.ply").vertices, points);
 }

@@ -41,8 +41,35 @@ TEST(Preprocess, NonFinitePointsThrowUnderErrorPolicy) {
         const std::string msg = e.what();
         EXPECT_NE(msg.find("000042.bin"), std::string::npos) << msg;
         EXPECT_NE(msg.find("point 2"), std::string::npos) << msg;
-        EXPECT_NE(msg.find("drop"), std::string::npos) << msg;  // names the fix
+        EXPECT_NE(msg.find("invalid_points: drop"), std::string::npos) << msg;  // names the fix
     }
+}
+
+TEST(Preprocess, NonFinitePointsAreDroppedByDefault) {
+    EXPECT_EQ(shine::PreprocessConfig{}.invalid_points, shine::InvalidPointPolicy::kDrop);
+    const std::vector<Eigen::Vector3f> points = {{kNaN, 0, 0}, {5, 0, 0}, {0, kInf, 0}};
+    shine::PreprocessStats stats;
+    const auto out = shine::preprocess_scan(points, shine::PreprocessConfig{}, "s", &stats);
+    ASSERT_EQ(out.size(), 1u);
+    EXPECT_EQ(out[0], Eigen::Vector3f(5, 0, 0));
+    EXPECT_EQ(stats.dropped_nonfinite, 2u);
+}
+
+TEST(Preprocess, ScansWithNoValidPointGiveAnEmptyResult) {
+    shine::PreprocessStats stats;
+    // Nothing at all (an empty KITTI .bin).
+    EXPECT_TRUE(shine::preprocess_scan({}, shine::PreprocessConfig{}, "s", &stats).empty());
+    EXPECT_EQ(stats.input, 0u);
+    EXPECT_EQ(stats.output, 0u);
+    // Only invalid and zero-range points, with downsampling on (the default).
+    const std::vector<Eigen::Vector3f> points = {
+        {kNaN, kNaN, kNaN}, {0, 0, 0}, {kInf, -kInf, 0}, {0, 0, 0}, {1, kNaN, 1}};
+    const auto out = shine::preprocess_scan(points, shine::PreprocessConfig{}, "s", &stats);
+    EXPECT_TRUE(out.empty());
+    EXPECT_EQ(stats.input, 5u);
+    EXPECT_EQ(stats.dropped_nonfinite, 3u);
+    EXPECT_EQ(stats.dropped_zero_range, 2u);
+    EXPECT_EQ(stats.output, 0u);
 }
 
 TEST(Preprocess, NonFinitePointsAreCountedUnderDropPolicy) {

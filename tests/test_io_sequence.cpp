@@ -254,3 +254,12 @@ TEST(ScanSequence, LoadReportsACorruptScan) {
         EXPECT_NE(std::string(e.what()).find("000001.bin"), std::string::npos) << e.what();
     }
 }
+
+TEST(ScanSequence, EmptyBinIsAScanWithoutPoints) {
+    const fs::path dir = make_kitti("empty_scan", 3, 3);
+    shine::write_kitti_bin(dir / "velodyne" / "000001.bin", {});
+    const auto seq = shine::ScanSequence::open(dir);
+    ASSERT_EQ(seq.size(), 3u);
+    EXPECT_TRUE(seq.load(1).points_sensor.empty());
+    EXPECT_EQ(seq.load(2).points_sensor, scan_points(2));
+}

@@ -98,5 +98,26 @@ TEST(TumPoses, ErrorsNameFileAndLine) {
     expect_io_error([&] { shine::read_tum_poses(dir / "empty.tum"); }, dir / "empty.tum", "empty");
     write_text(dir / "comments.tum", "# only\n# comments\n");
     expect_io_error([&] { shine::read_tum_poses(dir / "comments.tum"); }, dir / "comments.tum",
-                    "no poses");
+                    "no poses (2 comment or blank lines)");
+    write_text(dir / "late_comment.tum", "0 1 2 3 0 0 0 1\n1 1 2 3 0 0 0 1 # moved\n");
+    expect_io_error([&] { shine::read_tum_poses(dir / "late_comment.tum"); },
+                    dir / "late_comment.tum", "line 2: comment after data");
+    write_text(dir / "nine.tum", "\n\n0 1 2 3 0 0 0 1 7\n");
+    expect_io_error([&] { shine::read_tum_poses(dir / "nine.tum"); }, dir / "nine.tum",
+                    "line 3: expected 8 fields (t x y z qx qy qz qw), found 9");
+    write_text(dir / "kitti.tum", "1 0 0 0 0 1 0 0 0 0 1 0\n");
+    expect_io_error([&] { shine::read_tum_poses(dir / "kitti.tum"); }, dir / "kitti.tum",
+                    "found 12 (a KITTI pose file? use pose_format kitti)");
+    write_text(dir / "binary.tum", std::string("0 1 2 \x01\xff\x00z 0 0 0 1\n", 19));
+    expect_io_error([&] { shine::read_tum_poses(dir / "binary.tum"); }, dir / "binary.tum",
+                    "line 1: '\\x01\\xff\\x00z' is not a number");
+    expect_io_error([&] { shine::read_tum_poses(dir / "missing.tum"); }, dir / "missing.tum",
+                    "does not exist");
+}
+
+TEST(TumPoses, ParsesTextInMemory) {
+    const auto poses = shine::parse_tum_poses("5.5 1 2 3 0 0 0 1", "memory");
+    ASSERT_EQ(poses.size(), 1u);
+    EXPECT_EQ(poses[0].timestamp_s, 5.5);
+    EXPECT_EQ(poses[0].T_world_sensor.translation(), Eigen::Vector3d(1, 2, 3));
 }

@@ -1,5 +1,7 @@
 #include "shine/io/file_contents.hpp"
 
+#include <algorithm>
+#include <cstdio>
 #include <fstream>
 
 #include "shine/core/error.hpp"
@@ -8,7 +10,7 @@ namespace shine {
 namespace fs = std::filesystem;
 
 std::string read_file_contents(const fs::path& path, const std::string& kind,
-                               const std::string& expected) {
+                               const std::string& expected, EmptyFile empty) {
     auto fail = [&](const std::string& what) {
         throw IoError(kind + " '" + path.string() + "': " + what);
     };
@@ -19,13 +21,33 @@ std::string read_file_contents(const fs::path& path, const std::string& kind,
     if (!in) fail("cannot open for reading (permissions?)");
     in.seekg(0, std::ios::end);
     const std::streamoff size = in.tellg();
-    if (size < 0) fail("cannot determine the file size");
-    if (size == 0) fail("file is empty");
+    if (size < 0) fail("cannot determine the file size (not a regular file?)");
+    if (size == 0) {
+        if (empty == EmptyFile::kAllow) return {};
+        fail("file is empty");
+    }
     in.seekg(0, std::ios::beg);
     std::string data(static_cast<std::size_t>(size), '\0');
     in.read(data.data(), size);
     if (in.gcount() != size) fail("read error (file changed while reading?)");
     return data;
+}
+
+std::string printable_excerpt(std::string_view text, std::size_t max_chars) {
+    std::string out;
+    const std::size_t n = std::min(text.size(), max_chars);
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto c = static_cast<unsigned char>(text[i]);
+        if (c >= 0x20 && c < 0x7f) {
+            out += static_cast<char>(c);
+        } else {
+            char escaped[8];
+            std::snprintf(escaped, sizeof(escaped), "\\x%02x", c);
+            out += escaped;
+        }
+    }
+    if (text.size() > max_chars) out += "...";
+    return out;
 }
 
 }  // namespace shine

@@ -27,10 +27,6 @@ namespace {
                   ": " + what);
 }
 
-std::string read_whole_file(const fs::path& path) {
-    return read_file_contents(path, "KITTI file", "a file");
-}
-
 /// Splits `line` at blanks and parses every word as a double. Returns false and sets `bad` to the
 /// offending word if one is not a number.
 bool parse_numbers(std::string_view line, std::vector<double>* values, std::string* bad) {
@@ -47,7 +43,7 @@ bool parse_numbers(std::string_view line, std::vector<double>* values, std::stri
         double v = 0.0;
         const auto r = std::from_chars(first, last, v);
         if (first == last || r.ec != std::errc() || r.ptr != last) {
-            *bad = std::string(line.substr(start, i - start));
+            *bad = printable_excerpt(line.substr(start, i - start));
             return false;
         }
         values->push_back(v);
@@ -86,13 +82,13 @@ Eigen::Isometry3d pose_from_row_major(const std::vector<double>& v, const fs::pa
 
 /// Calls `f(line, line_number)` for every line of `data` with the '\r' of CRLF removed.
 template <typename F>
-void for_each_line(const std::string& data, F&& f) {
+void for_each_line(std::string_view data, F&& f) {
     std::size_t pos = 0;
-    int line_no = 0;
+    std::size_t line_no = 0;
     while (pos < data.size()) {
         std::size_t eol = data.find('\n', pos);
-        if (eol == std::string::npos) eol = data.size();
-        std::string_view line(data.data() + pos, eol - pos);
+        if (eol == std::string_view::npos) eol = data.size();
+        std::string_view line = data.substr(pos, eol - pos);
         if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
         f(line, ++line_no);
         pos = eol + 1;
@@ -123,14 +119,21 @@ std::string format_row_major(const Eigen::Isometry3d& T) {
 }  // namespace kitti_internal
 
 std::vector<Eigen::Vector3f> read_kitti_bin(const fs::path& path) {
+    // A sensor may return nothing (e.g. blocked or still spinning up): an empty scan is valid.
+    return parse_kitti_bin(read_file_contents(path, "KITTI file", "a .bin file", EmptyFile::kAllow),
+                           path);
+}
+
+std::vector<Eigen::Vector3f> parse_kitti_bin(std::string_view data, const fs::path& path) {
     using namespace kitti_internal;
-    const std::string data = read_whole_file(path);
     constexpr std::size_t kPointBytes = 4 * sizeof(float);
     if (data.size() % kPointBytes != 0) {
-        fail(path, "byte offset " + std::to_string(data.size() - data.size() % kPointBytes),
+        const std::size_t partial = data.size() - data.size() % kPointBytes;
+        fail(path, "byte offset " + std::to_string(partial),
              "size " + std::to_string(data.size()) +
-                 " bytes is not a multiple of 16 (float32 x y z intensity per point): truncated "
-                 "or not a KITTI scan");
+                 " bytes is not a multiple of 16 (float32 x y z intensity per point): the last "
+                 "record has only " +
+                 std::to_string(data.size() - partial) + " bytes; truncated or not a KITTI scan");
     }
     const std::size_t n = data.size() / kPointBytes;
     std::vector<Eigen::Vector3f> points(n);
@@ -169,12 +172,17 @@ void write_kitti_bin(const fs::path& path, const std::vector<Eigen::Vector3f>& p
 }
 
 std::vector<Eigen::Isometry3d> read_kitti_poses(const fs::path& path) {
+    return parse_kitti_poses(read_file_contents(path, "KITTI file", "a pose file"), path);
+}
+
+std::vector<Eigen::Isometry3d> parse_kitti_poses(std::string_view data, const fs::path& path) {
     using namespace kitti_internal;
-    const std::string data = read_whole_file(path);
     std::vector<Eigen::Isometry3d> poses;
     std::vector<double> values;
     std::string bad;
-    for_each_line(data, [&](std::string_view line, int line_no) {
+    std::size_t lines = 0;
+    for_each_line(data, [&](std::string_view line, std::size_t line_no) {
+        lines = line_no;
         if (is_blank(line)) return;
         const std::string where = "line " + std::to_string(line_no);
         if (!parse_numbers(line, &values, &bad)) {
@@ -188,7 +196,9 @@ std::vector<Eigen::Isometry3d> read_kitti_poses(const fs::path& path) {
         }
         poses.push_back(pose_from_row_major(values, path, where));
     });
-    if (poses.empty()) fail(path, "", "contains no poses");
+    if (poses.empty()) {
+        fail(path, "", "contains no poses (" + std::to_string(lines) + " blank lines)");
+    }
     return poses;
 }
 
@@ -205,18 +215,26 @@ void write_kitti_poses(const fs::path& path, const std::vector<Eigen::Isometry3d
 }
 
 Eigen::Isometry3d read_kitti_calib_tr(const fs::path& path) {
+    return parse_kitti_calib_tr(read_file_contents(path, "KITTI file", "a calib.txt file"), path);
+}
+
+Eigen::Isometry3d parse_kitti_calib_tr(std::string_view data, const fs::path& path) {
     using namespace kitti_internal;
-    const std::string data = read_whole_file(path);
     std::vector<double> values;
     std::string bad;
     bool found = false;
     Eigen::Isometry3d Tr = Eigen::Isometry3d::Identity();
-    for_each_line(data, [&](std::string_view line, int line_no) {
+    std::size_t lines = 0;
+    for_each_line(data, [&](std::string_view line, std::size_t line_no) {
+        lines = line_no;
         const std::size_t colon = line.find(':');
         if (colon == std::string_view::npos) return;
         std::string_view key = line.substr(0, colon);
         while (!key.empty() && std::isspace(static_cast<unsigned char>(key.front()))) {
             key.remove_prefix(1);
+        }
+        while (!key.empty() && std::isspace(static_cast<unsigned char>(key.back()))) {
+            key.remove_suffix(1);
         }
         // KITTI odometry calls it "Tr", the raw-data calib_velo_to_cam files "Tr_velo_to_cam".
         if (key != "Tr" && key != "Tr_velo_to_cam") return;
@@ -234,8 +252,9 @@ Eigen::Isometry3d read_kitti_calib_tr(const fs::path& path) {
     });
     if (!found) {
         fail(path, "",
-             "has no 'Tr:' line (expected 'Tr: r11 r12 r13 t1 ... r33 t3', the LiDAR-to-"
-             "camera transform)");
+             "has no 'Tr:' line among its " + std::to_string(lines) +
+                 " lines (expected 'Tr: r11 r12 r13 t1 ... r33 t3', the LiDAR-to-camera "
+                 "transform)");
     }
     return Tr;
 }

@@ -29,10 +29,6 @@ namespace {
                   what);
 }
 
-std::string read_whole_file(const fs::path& path) {
-    return read_file_contents(path, "PCD file", "a .pcd file");
-}
-
 std::vector<std::string_view> split_words(std::string_view line) {
     std::vector<std::string_view> words;
     std::size_t i = 0;
@@ -75,24 +71,30 @@ struct Header {
     std::size_t record_size = 0;  // bytes per point in binary encodings
     std::size_t token_count = 0;  // values per point in ascii
     std::size_t data_offset = 0;
-    int data_line = 0;
+    std::size_t data_line = 0;
     int xyz_field[3] = {-1, -1, -1};
 };
 
-Header parse_header(const fs::path& path, const std::string& data) {
+Header parse_header(const fs::path& path, std::string_view data) {
     Header h;
     std::size_t pos = 0;
-    int line_no = 0;
+    std::size_t line_no = 0;
     bool have_sizes = false, have_types = false, have_counts = false, have_width = false;
     bool have_points = false;
     std::uint64_t width = 0, height = 1;
     std::vector<std::string_view> sizes, types, counts;
-    int fields_line = 0;
+    // Header line of each keyword, for messages about its values.
+    std::size_t fields_line = 0, sizes_line = 0, types_line = 0, counts_line = 0;
+    std::size_t width_line = 0, points_line = 0;
+    const auto line_text = [](std::size_t n) { return "line " + std::to_string(n); };
     while (true) {
-        if (pos >= data.size()) fail(path, "header", "ends without a DATA line");
+        if (pos >= data.size()) {
+            fail(path, "header (lines 1-" + std::to_string(line_no) + ")",
+                 "ends without a DATA line");
+        }
         std::size_t eol = data.find('\n', pos);
-        if (eol == std::string::npos) eol = data.size();
-        std::string_view line(data.data() + pos, eol - pos);
+        if (eol == std::string_view::npos) eol = data.size();
+        std::string_view line = data.substr(pos, eol - pos);
         if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
         pos = std::min(eol + 1, data.size());
         ++line_no;
@@ -102,7 +104,8 @@ Header parse_header(const fs::path& path, const std::string& data) {
         const std::string_view key = words[0];
         const auto need_args = [&](std::size_t n) {
             if (words.size() < n + 1) {
-                fail(path, where, std::string(key) + " needs " + std::to_string(n) + " value(s)");
+                fail(path, where,
+                     printable_excerpt(key) + " needs " + std::to_string(n) + " value(s)");
             }
         };
         if (key == "VERSION" || key == "VIEWPOINT") {
@@ -117,30 +120,35 @@ Header parse_header(const fs::path& path, const std::string& data) {
             need_args(1);
             sizes.assign(words.begin() + 1, words.end());
             have_sizes = true;
+            sizes_line = line_no;
         } else if (key == "TYPE") {
             need_args(1);
             types.assign(words.begin() + 1, words.end());
             have_types = true;
+            types_line = line_no;
         } else if (key == "COUNT") {
             need_args(1);
             counts.assign(words.begin() + 1, words.end());
             have_counts = true;
+            counts_line = line_no;
         } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
             need_args(1);
             std::uint64_t value = 0;
             if (!parse_uint(words[1], &value)) {
                 fail(path, where,
-                     std::string(key) + " '" + std::string(words[1]) +
-                         "' is not a non-negative integer");
+                     std::string(key) + " '" + printable_excerpt(words[1]) +
+                         "' is not a non-negative integer below 2^64");
             }
             if (key == "WIDTH") {
                 width = value;
                 have_width = true;
+                width_line = line_no;
             } else if (key == "HEIGHT") {
                 height = value;
             } else {
                 h.points = value;
                 have_points = true;
+                points_line = line_no;
             }
         } else if (key == "DATA") {
             need_args(1);
@@ -152,19 +160,19 @@ Header parse_header(const fs::path& path, const std::string& data) {
                 h.encoding = Encoding::kBinaryCompressed;
             } else {
                 fail(path, where,
-                     "unknown DATA encoding '" + std::string(words[1]) +
+                     "unknown DATA encoding '" + printable_excerpt(words[1]) +
                          "' (expected ascii, binary or binary_compressed)");
             }
             break;
         } else {
             fail(path, where,
-                 "unknown header keyword '" + std::string(key) + "' (not a PCD file?)");
+                 "unknown header keyword '" + printable_excerpt(key) + "' (not a PCD file?)");
         }
     }
     h.data_offset = pos;
     h.data_line = line_no + 1;
 
-    const std::string header_where = "header";
+    const std::string header_where = "header (lines 1-" + std::to_string(line_no) + ")";
     if (h.fields.empty()) fail(path, header_where, "has no FIELDS line");
     if (!have_sizes || !have_types) fail(path, header_where, "needs SIZE and TYPE lines");
     const std::size_t nf = h.fields.size();
@@ -179,24 +187,25 @@ Header parse_header(const fs::path& path, const std::string& data) {
         Field& f = h.fields[i];
         std::uint64_t size = 0;
         if (!parse_uint(sizes[i], &size) || (size != 1 && size != 2 && size != 4 && size != 8)) {
-            fail(path, header_where,
-                 "SIZE of field '" + f.name + "' is '" + std::string(sizes[i]) +
-                     "' (expected 1, 2, 4 or 8)");
+            fail(path, line_text(sizes_line),
+                 "SIZE of field '" + printable_excerpt(f.name) + "' is '" +
+                     printable_excerpt(sizes[i]) + "' (expected 1, 2, 4 or 8)");
         }
         f.size = static_cast<std::size_t>(size);
         if (types[i] != "F" && types[i] != "I" && types[i] != "U") {
-            fail(path, header_where,
-                 "TYPE of field '" + f.name + "' is '" + std::string(types[i]) +
-                     "' (expected F, I or U)");
+            fail(path, line_text(types_line),
+                 "TYPE of field '" + printable_excerpt(f.name) + "' is '" +
+                     printable_excerpt(types[i]) + "' (expected F, I or U)");
         }
         f.type = types[i][0];
         if (have_counts) {
             std::uint64_t count = 0;
             // A field wider than 1e6 values per point is not a LiDAR scan; refuse it early.
             if (!parse_uint(counts[i], &count) || count == 0 || count > 1000000) {
-                fail(path, header_where,
-                     "COUNT of field '" + f.name + "' is '" + std::string(counts[i]) +
-                         "' (expected a positive integer)");
+                fail(path, line_text(counts_line),
+                     "COUNT of field '" + printable_excerpt(f.name) + "' is '" +
+                         printable_excerpt(counts[i]) +
+                         "' (expected an integer from 1 to 1000000)");
             }
             f.count = static_cast<std::size_t>(count);
         }
@@ -216,7 +225,7 @@ Header parse_header(const fs::path& path, const std::string& data) {
         }
         const Field& f = h.fields[h.xyz_field[axis]];
         if (f.type != 'F' || (f.size != 4 && f.size != 8) || f.count != 1) {
-            fail(path, header_where,
+            fail(path, line_text(fields_line),
                  "field '" + name + "' must be TYPE F, SIZE 4 or 8, COUNT 1 (found TYPE " +
                      std::string(1, f.type) + ", SIZE " + std::to_string(f.size) + ", COUNT " +
                      std::to_string(f.count) + ")");
@@ -225,10 +234,10 @@ Header parse_header(const fs::path& path, const std::string& data) {
     if (!have_width && !have_points) fail(path, header_where, "has neither WIDTH nor POINTS");
     if (have_width) {
         if (height != 0 && width > UINT64_MAX / height) {
-            fail(path, header_where, "WIDTH * HEIGHT overflows");
+            fail(path, line_text(width_line), "WIDTH * HEIGHT overflows");
         }
         if (have_points && h.points != width * height) {
-            fail(path, header_where,
+            fail(path, line_text(points_line),
                  "POINTS " + std::to_string(h.points) +
                      " differs from WIDTH * HEIGHT = " + std::to_string(width * height));
         }
@@ -249,7 +258,7 @@ float read_coordinate(const char* p, std::size_t size) {
     return static_cast<float>(v);
 }
 
-std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, const std::string& data,
+std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view data,
                                         const Header& h) {
     const std::size_t remaining = data.size() - h.data_offset;
     // Each point needs at least one character and one separator per value.
@@ -270,11 +279,11 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, const std::string&
     std::vector<Eigen::Vector3f> points;
     points.reserve(static_cast<std::size_t>(h.points));
     std::size_t pos = h.data_offset;
-    int line_no = h.data_line - 1;
+    std::size_t line_no = h.data_line - 1;
     while (pos < data.size()) {
         std::size_t eol = data.find('\n', pos);
-        if (eol == std::string::npos) eol = data.size();
-        const std::string_view line(data.data() + pos, eol - pos);
+        if (eol == std::string_view::npos) eol = data.size();
+        const std::string_view line = data.substr(pos, eol - pos);
         pos = eol + 1;
         ++line_no;
         const auto words = split_words(line);
@@ -294,7 +303,8 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, const std::string&
         for (int axis = 0; axis < 3; ++axis) {
             double v = 0.0;
             if (!parse_double(words[xyz_token[axis]], &v)) {
-                fail(path, where, "'" + std::string(words[xyz_token[axis]]) + "' is not a number");
+                fail(path, where,
+                     "'" + printable_excerpt(words[xyz_token[axis]]) + "' is not a number");
             }
             p[axis] = static_cast<float>(v);
         }
@@ -308,7 +318,7 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, const std::string&
     return points;
 }
 
-std::vector<Eigen::Vector3f> read_binary(const fs::path& path, const std::string& data,
+std::vector<Eigen::Vector3f> read_binary(const fs::path& path, std::string_view data,
                                          const Header& h) {
     const std::size_t remaining = data.size() - h.data_offset;
     if (h.points > remaining / h.record_size) {
@@ -376,7 +386,7 @@ void lzf_decompress(const unsigned char* in, std::size_t in_size, unsigned char*
     }
 }
 
-std::vector<Eigen::Vector3f> read_compressed(const fs::path& path, const std::string& data,
+std::vector<Eigen::Vector3f> read_compressed(const fs::path& path, std::string_view data,
                                              const Header& h) {
     const std::size_t remaining = data.size() - h.data_offset;
     const std::string sizes_where = "byte offset " + std::to_string(h.data_offset);
@@ -426,8 +436,11 @@ std::vector<Eigen::Vector3f> read_compressed(const fs::path& path, const std::st
 }  // namespace pcd_internal
 
 std::vector<Eigen::Vector3f> read_pcd_points(const fs::path& path) {
+    return parse_pcd_points(read_file_contents(path, "PCD file", "a .pcd file"), path);
+}
+
+std::vector<Eigen::Vector3f> parse_pcd_points(std::string_view data, const fs::path& path) {
     using namespace pcd_internal;
-    const std::string data = read_whole_file(path);
     const Header header = parse_header(path, data);
     switch (header.encoding) {
         case Encoding::kAscii:

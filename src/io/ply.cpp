@@ -32,10 +32,6 @@ namespace {
                   what);
 }
 
-std::string read_whole_file(const fs::path& path) {
-    return read_file_contents(path, "PLY file", "a .ply file");
-}
-
 enum class Format { kAscii, kBinaryLittle, kBinaryBig };
 
 enum class Scalar { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
@@ -91,7 +87,7 @@ struct Element {
     std::string name;
     std::uint64_t count = 0;
     std::vector<Property> properties;
-    int header_line = 0;
+    std::size_t header_line = 0;
 
     /// Smallest number of body bytes one binary element can occupy (lists may be empty).
     std::size_t min_binary_size() const {
@@ -105,7 +101,7 @@ struct Header {
     Format format = Format::kAscii;
     std::vector<Element> elements;
     std::size_t body_offset = 0;  // byte offset of the first body byte
-    int body_line = 0;            // line number of the first body line (ascii)
+    std::size_t body_line = 0;    // line number of the first body line (ascii)
 };
 
 std::string number_text(double value) {
@@ -126,25 +122,25 @@ std::vector<std::string_view> split_words(std::string_view line) {
     return words;
 }
 
-Header parse_header(const fs::path& path, const std::string& data) {
+Header parse_header(const fs::path& path, std::string_view data) {
     Header header;
     std::size_t pos = 0;
-    int line_no = 0;
+    std::size_t line_no = 0;
     bool have_format = false;
     bool done = false;
     // Check the magic first: a binary file without newlines would otherwise only be reported as
     // "no end_header".
-    if (data.compare(0, 4, "ply\n") != 0 && data.compare(0, 5, "ply\r\n") != 0) {
+    if (data.substr(0, 4) != "ply\n" && data.substr(0, 5) != "ply\r\n") {
         fail(path, "line 1", "not a PLY file (the first line must be 'ply')");
     }
     while (!done) {
         if (pos >= data.size()) fail(path, "header", "ends without an 'end_header' line");
         std::size_t eol = data.find('\n', pos);
-        if (eol == std::string::npos) {
+        if (eol == std::string_view::npos) {
             fail(path, "line " + std::to_string(line_no + 1),
                  "header ends without an 'end_header' line");
         }
-        std::string_view line(data.data() + pos, eol - pos);
+        std::string_view line = data.substr(pos, eol - pos);
         if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
         ++line_no;
         pos = eol + 1;
@@ -167,7 +163,7 @@ Header parse_header(const fs::path& path, const std::string& data) {
                 header.format = Format::kBinaryBig;
             } else {
                 fail(path, where,
-                     "unknown format '" + std::string(words[1]) +
+                     "unknown format '" + printable_excerpt(words[1]) +
                          "' (expected ascii, binary_little_endian or "
                          "binary_big_endian)");
             }
@@ -181,7 +177,8 @@ Header parse_header(const fs::path& path, const std::string& data) {
             const auto r = std::from_chars(c.data(), c.data() + c.size(), e.count);
             if (r.ec != std::errc() || r.ptr != c.data() + c.size()) {
                 fail(path, where,
-                     "element count '" + std::string(c) + "' is not a non-negative integer");
+                     "element count '" + printable_excerpt(c) +
+                         "' is not a non-negative integer below 2^64");
             }
             header.elements.push_back(std::move(e));
         } else if (key == "property") {
@@ -194,16 +191,19 @@ Header parse_header(const fs::path& path, const std::string& data) {
                 p.is_list = true;
                 if (!parse_scalar_type(words[2], &p.count_type) || !is_integer(p.count_type)) {
                     fail(path, where,
-                         "list count type '" + std::string(words[2]) + "' is not an integer type");
+                         "list count type '" + printable_excerpt(words[2]) +
+                             "' is not an integer type");
                 }
                 if (!parse_scalar_type(words[3], &p.type)) {
-                    fail(path, where, "unknown property type '" + std::string(words[3]) + "'");
+                    fail(path, where,
+                         "unknown property type '" + printable_excerpt(words[3]) + "'");
                 }
                 p.name = std::string(words[4]);
             } else {
                 if (words.size() != 3) fail(path, where, "expected 'property <type> <name>'");
                 if (!parse_scalar_type(words[1], &p.type)) {
-                    fail(path, where, "unknown property type '" + std::string(words[1]) + "'");
+                    fail(path, where,
+                         "unknown property type '" + printable_excerpt(words[1]) + "'");
                 }
                 p.name = std::string(words[2]);
             }
@@ -211,10 +211,12 @@ Header parse_header(const fs::path& path, const std::string& data) {
         } else if (key == "end_header") {
             done = true;
         } else {
-            fail(path, where, "unknown header keyword '" + std::string(key) + "'");
+            fail(path, where, "unknown header keyword '" + printable_excerpt(key) + "'");
         }
     }
-    if (!have_format) fail(path, "header", "has no 'format' line");
+    if (!have_format) {
+        fail(path, "header (lines 1-" + std::to_string(line_no) + ")", "has no 'format' line");
+    }
     header.body_offset = pos;
     header.body_line = line_no + 1;
 
@@ -226,7 +228,7 @@ Header parse_header(const fs::path& path, const std::string& data) {
         const std::string where = "line " + std::to_string(e.header_line);
         if (e.properties.empty()) {
             fail(path, where,
-                 "element '" + e.name + "' has " + std::to_string(e.count) +
+                 "element '" + printable_excerpt(e.name) + "' has " + std::to_string(e.count) +
                      " entries but no "
                      "properties");
         }
@@ -238,7 +240,7 @@ Header parse_header(const fs::path& path, const std::string& data) {
         const std::size_t slack = header.format == Format::kAscii ? 1 : 0;
         if (e.count > (remaining + slack) / per_entry) {
             fail(path, where,
-                 "header declares " + std::to_string(e.count) + " '" + e.name +
+                 "header declares " + std::to_string(e.count) + " '" + printable_excerpt(e.name) +
                      "' entries (at least " + std::to_string(per_entry) + " bytes each) but only " +
                      std::to_string(remaining) +
                      " bytes of data remain: truncated file or corrupt header");
@@ -251,7 +253,7 @@ Header parse_header(const fs::path& path, const std::string& data) {
 /// Bounds-checked reader of binary PLY values.
 class BinaryReader {
   public:
-    BinaryReader(const fs::path& path, const std::string& data, std::size_t offset, bool big_endian)
+    BinaryReader(const fs::path& path, std::string_view data, std::size_t offset, bool big_endian)
         : path_(path), data_(data), pos_(offset), big_endian_(big_endian) {}
 
     double scalar(Scalar type) {
@@ -288,6 +290,15 @@ class BinaryReader {
     }
 
     std::string where() const { return "byte offset " + std::to_string(pos_); }
+    /// A cheap bookmark of the current position, for where_since().
+    std::size_t mark() const { return pos_; }
+    /// The place of a value that started at `mark`: its byte offset.
+    std::string where_since(std::size_t mark) const {
+        return "byte offset " + std::to_string(mark);
+    }
+    /// Bytes after the last element are tolerated: the counts were checked against the size, and
+    /// some writers pad binary files.
+    void finish() const {}
 
   private:
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
@@ -304,7 +315,7 @@ class BinaryReader {
     }
 
     const fs::path& path_;
-    const std::string& data_;
+    std::string_view data_;
     std::size_t pos_;
     bool big_endian_;
 };
@@ -312,7 +323,7 @@ class BinaryReader {
 /// Tokenizer of ascii PLY bodies that tracks line numbers for messages.
 class AsciiReader {
   public:
-    AsciiReader(const fs::path& path, const std::string& data, std::size_t offset, int line)
+    AsciiReader(const fs::path& path, std::string_view data, std::size_t offset, std::size_t line)
         : path_(path), data_(data), pos_(offset), line_(line) {}
 
     double scalar(Scalar type) {
@@ -332,23 +343,39 @@ class AsciiReader {
         const auto r = std::from_chars(first, last, value);
         if (r.ec != std::errc() || r.ptr != last || first == last) {
             fail(path_, where(),
-                 "'" + std::string(data_.data() + start, pos_ - start) + "' is not a number");
+                 "'" + printable_excerpt(data_.substr(start, pos_ - start)) + "' is not a number");
         }
         if (is_integer(type) && value != std::floor(value)) {
             fail(path_, where(),
-                 "'" + std::string(data_.data() + start, pos_ - start) +
+                 "'" + printable_excerpt(data_.substr(start, pos_ - start)) +
                      "' is not an integer but the property is declared as an integer type");
         }
         return value;
     }
 
     std::string where() const { return "line " + std::to_string(line_); }
+    std::size_t mark() const { return pos_; }
+    /// The place of a value that started at `mark`: the line its last token is on.
+    std::string where_since(std::size_t /*mark*/) const { return where(); }
+    /// Rejects values after the last element: the header's counts are smaller than the data.
+    void finish() {
+        while (pos_ < data_.size() && std::isspace(static_cast<unsigned char>(data_[pos_]))) {
+            if (data_[pos_] == '\n') ++line_;
+            ++pos_;
+        }
+        if (pos_ < data_.size()) {
+            fail(path_, where(),
+                 "'" + printable_excerpt(data_.substr(pos_, 20)) +
+                     "' after the last element: the data holds more values than the header's "
+                     "element counts declare");
+        }
+    }
 
   private:
     const fs::path& path_;
-    const std::string& data_;
+    std::string_view data_;
     std::size_t pos_;
-    int line_;
+    std::size_t line_;
 };
 
 struct ReadResult {
@@ -362,7 +389,8 @@ std::size_t read_list_count(Reader& reader, const Property& p, const fs::path& p
     const double c = reader.scalar(p.count_type);
     if (!(c >= 0.0) || c > 1e9) {
         fail(path, reader.where(),
-             "invalid list length " + number_text(c) + " for property '" + p.name + "'");
+             "invalid list length " + number_text(c) + " for property '" +
+                 printable_excerpt(p.name) + "'");
     }
     return static_cast<std::size_t>(c);
 }
@@ -375,8 +403,8 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
     bool have_observed = false;
     std::vector<double> polygon;
     for (const Element& e : header.elements) {
-        const std::string element_where =
-            "element '" + e.name + "' (header line " + std::to_string(e.header_line) + ")";
+        const std::string element_where = "element '" + printable_excerpt(e.name) +
+                                          "' (header line " + std::to_string(e.header_line) + ")";
         if (e.name == "vertex") {
             if (result->has_vertex_element) fail(path, element_where, "second vertex element");
             result->has_vertex_element = true;
@@ -397,6 +425,7 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
             mesh.vertices.resize(static_cast<std::size_t>(e.count));
             for (std::uint64_t v = 0; v < e.count; ++v) {
                 Eigen::Vector3f& out = mesh.vertices[static_cast<std::size_t>(v)];
+                const std::size_t vertex_mark = reader.mark();
                 for (std::size_t i = 0; i < e.properties.size(); ++i) {
                     const Property& p = e.properties[i];
                     if (p.is_list) {
@@ -411,8 +440,17 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
                         }
                     }
                 }
+                // Scans may hold NaN for "no return" (preprocess_scan drops it); a mesh vertex
+                // without a position has no meaning and would poison every distance to it.
+                if (want_faces && !out.allFinite()) {
+                    fail(path, reader.where_since(vertex_mark),
+                         "vertex " + std::to_string(v) + " has a non-finite coordinate (" +
+                             number_text(out.x()) + ", " + number_text(out.y()) + ", " +
+                             number_text(out.z()) + ")");
+                }
             }
-            if (!want_faces) return;  // points only: nothing after the vertices matters
+            // Points only: later elements need not be read (nor can their counts be checked).
+            if (!want_faces && &e != &header.elements.back()) return;
         } else if (e.name == "face" && want_faces) {
             if (face_count > 0) fail(path, element_where, "second face element");
             int index_property = -1;
@@ -483,10 +521,10 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
             }
         }
     }
+    reader.finish();
 }
 
-ReadResult read_ply(const fs::path& path, bool want_faces) {
-    const std::string data = read_whole_file(path);
+ReadResult parse_ply(std::string_view data, const fs::path& path, bool want_faces) {
     const Header header = parse_header(path, data);
     ReadResult result;
     if (header.format == Format::kAscii) {
@@ -496,7 +534,10 @@ ReadResult read_ply(const fs::path& path, bool want_faces) {
         BinaryReader reader(path, data, header.body_offset, header.format == Format::kBinaryBig);
         read_body(reader, header, path, want_faces, &result);
     }
-    if (!result.has_vertex_element) fail(path, "header", "has no 'vertex' element");
+    if (!result.has_vertex_element) {
+        fail(path, "header (lines 1-" + std::to_string(header.body_line - 1) + ")",
+             "has no 'vertex' element");
+    }
     const std::size_t nv = result.mesh.vertices.size();
     for (std::size_t t = 0; t < result.mesh.triangles.size(); ++t) {
         for (int k = 0; k < 3; ++k) {
@@ -547,11 +588,19 @@ char* put_vertices(char* out, const std::vector<Eigen::Vector3f>& vertices) {
 }  // namespace ply_internal
 
 TriangleMesh read_ply_mesh(const fs::path& path) {
-    return ply_internal::read_ply(path, /*want_faces=*/true).mesh;
+    return parse_ply_mesh(read_file_contents(path, "PLY file", "a .ply file"), path);
+}
+
+TriangleMesh parse_ply_mesh(std::string_view data, const fs::path& source) {
+    return ply_internal::parse_ply(data, source, /*want_faces=*/true).mesh;
 }
 
 std::vector<Eigen::Vector3f> read_ply_points(const fs::path& path) {
-    return std::move(ply_internal::read_ply(path, /*want_faces=*/false).mesh.vertices);
+    return parse_ply_points(read_file_contents(path, "PLY file", "a .ply file"), path);
+}
+
+std::vector<Eigen::Vector3f> parse_ply_points(std::string_view data, const fs::path& source) {
+    return std::move(ply_internal::parse_ply(data, source, /*want_faces=*/false).mesh.vertices);
 }
 
 void write_ply_mesh(const fs::path& path, const TriangleMesh& mesh) {

@@ -96,8 +96,8 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
                               static_cast<double>(p.x()), static_cast<double>(p.y()),
                               static_cast<double>(p.z()));
                 throw DataError("scan '" + source.string() + "': " + text +
-                                ", not finite; set the invalid point policy to 'drop' to skip "
-                                "such points");
+                                ", not finite; set 'preprocess.invalid_points: drop' (the "
+                                "default) to skip and count such points");
             }
             ++s.dropped_nonfinite;
             continue;

@@ -24,29 +24,28 @@ namespace {
                   ": " + what);
 }
 
-std::string read_whole_file(const fs::path& path) {
-    return read_file_contents(path, "TUM trajectory", "a file");
-}
-
 }  // namespace
 }  // namespace tum_internal
 
 std::vector<StampedPose> read_tum_poses(const fs::path& path) {
+    return parse_tum_poses(read_file_contents(path, "TUM trajectory", "a trajectory file"), path);
+}
+
+std::vector<StampedPose> parse_tum_poses(std::string_view data, const fs::path& path) {
     using namespace tum_internal;
-    const std::string data = read_whole_file(path);
     std::vector<StampedPose> poses;
     std::size_t pos = 0;
-    int line_no = 0;
+    std::size_t line_no = 0;
     double v[8];
     while (pos < data.size()) {
         std::size_t eol = data.find('\n', pos);
-        if (eol == std::string::npos) eol = data.size();
-        const std::string_view line(data.data() + pos, eol - pos);
+        if (eol == std::string_view::npos) eol = data.size();
+        const std::string_view line = data.substr(pos, eol - pos);
         pos = eol + 1;
         ++line_no;
         const std::string where = "line " + std::to_string(line_no);
         std::size_t i = 0;
-        int count = 0;
+        std::size_t count = 0;
         bool comment = false;
         while (i < line.size()) {
             while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
@@ -65,13 +64,14 @@ std::vector<StampedPose> read_tum_poses(const fs::path& path) {
             const std::string_view word = line.substr(start, i - start);
             if (i < line.size() && line[i] == ',') ++i;
             if (word.empty()) continue;
-            if (count == 8) fail(path, where, "more than 8 fields (expected t x y z qx qy qz qw)");
             const char* first = word.data();
             const char* last = word.data() + word.size();
             if (*first == '+') ++first;
-            const auto r = std::from_chars(first, last, v[count]);
+            // Fields past the 8th are parsed too, so that the message can count them.
+            double extra = 0.0;
+            const auto r = std::from_chars(first, last, count < 8 ? v[count] : extra);
             if (first == last || r.ec != std::errc() || r.ptr != last) {
-                fail(path, where, "'" + std::string(word) + "' is not a number");
+                fail(path, where, "'" + printable_excerpt(word) + "' is not a number");
             }
             ++count;
         }
@@ -95,7 +95,10 @@ std::vector<StampedPose> read_tum_poses(const fs::path& path) {
         p.T_world_sensor.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
         poses.push_back(p);
     }
-    if (poses.empty()) fail(path, "", "contains no poses");
+    if (poses.empty()) {
+        fail(path, "",
+             "contains no poses (" + std::to_string(line_no) + " comment or blank lines)");
+    }
     return poses;
 }
 

@@ -3,16 +3,22 @@
 
 #include <Eigen/Core>
 #include <filesystem>
+#include <string_view>
 #include <vector>
 
 namespace shine {
 
 /// Reads the x y z fields of a PCD file (any field order, F4 or F8 coordinates, other fields
-/// skipped). Throws IoError naming the file and the header line or byte offset on a malformed
-/// header, missing x/y/z fields, truncated data or a corrupt LZF block. Binary data is read as
-/// little-endian (what PCL writes on every common platform). NaN points (PCL's "no return") are
-/// returned as stored; preprocess_scan decides what happens to them.
+/// skipped). Throws IoError naming the file and the place (header line, data line for ascii,
+/// byte offset for binary) on a malformed header, missing x/y/z fields, a point count the data
+/// cannot hold (checked before allocating), truncated data or a corrupt LZF block. Binary data is
+/// read as little-endian (what PCL writes on every common platform). NaN points (PCL's "no
+/// return") are returned as stored; preprocess_scan decides what happens to them.
 std::vector<Eigen::Vector3f> read_pcd_points(const std::filesystem::path& path);
+
+/// read_pcd_points on bytes already in memory; `source` names them in messages.
+std::vector<Eigen::Vector3f> parse_pcd_points(std::string_view data,
+                                              const std::filesystem::path& source);
 
 /// Writes x y z as a binary PCD atomically.
 void write_pcd_points(const std::filesystem::path& path,

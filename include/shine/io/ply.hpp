@@ -1,12 +1,14 @@
 // PLY files: triangle meshes (reference and output meshes) and point clouds (scans).
 //
 // Reads ASCII, binary_little_endian and binary_big_endian PLY with any scalar property types;
-// writes binary little-endian. Every failure names the file, the header line or byte offset, and
-// the problem.
+// writes binary little-endian. Every failure names the file, the place (header line, body line for
+// ascii, byte offset for binary) and the problem. Each reader has a parse_* twin that takes the
+// file's bytes and the name to use in messages.
 #pragma once
 
 #include <Eigen/Core>
 #include <filesystem>
+#include <string_view>
 #include <vector>
 
 #include "shine/geometry/triangle_mesh.hpp"
@@ -18,16 +20,24 @@ namespace shine {
 /// `observed`, copied to every triangle of its polygon as 0/1). Other properties and elements are
 /// skipped. A file without faces gives an empty triangle list. Throws IoError on a missing,
 /// empty, truncated or malformed file, on element counts larger than the file can hold (checked
-/// before allocating) and on out-of-range vertex indices.
+/// before allocating), on non-finite vertex coordinates and on out-of-range vertex indices.
 TriangleMesh read_ply_mesh(const std::filesystem::path& path);
+
+/// read_ply_mesh on bytes already in memory; `source` names them in messages.
+TriangleMesh parse_ply_mesh(std::string_view data, const std::filesystem::path& source);
 
 /// Writes a binary little-endian PLY atomically (temporary file + rename) from one buffer. Writes
 /// the uchar `observed` face property when mesh.face_observed is non-empty. Throws DataError if
 /// face_observed has the wrong size or a triangle refers to a missing vertex.
 void write_ply_mesh(const std::filesystem::path& path, const TriangleMesh& mesh);
 
-/// Reads the vertex positions of a PLY point cloud (faces, if any, are ignored).
+/// Reads the vertex positions of a PLY point cloud (faces, if any, are ignored; NaN coordinates
+/// are returned as stored, preprocess_scan filters them). Throws IoError as read_ply_mesh.
 std::vector<Eigen::Vector3f> read_ply_points(const std::filesystem::path& path);
+
+/// read_ply_points on bytes already in memory; `source` names them in messages.
+std::vector<Eigen::Vector3f> parse_ply_points(std::string_view data,
+                                              const std::filesystem::path& source);
 
 /// Writes points as a binary little-endian PLY point cloud, atomically.
 void write_ply_points(const std::filesystem::path& path,

@@ -11,7 +11,9 @@
 
 namespace shine {
 
-/// What to do with points whose coordinates are NaN or infinite.
+/// What to do with points whose coordinates are NaN or infinite: drop and count them (the
+/// default: sensors and PCL write NaN for "no return"), or stop with a DataError
+/// (`preprocess.invalid_points: error`, for data that should never hold any).
 enum class InvalidPointPolicy { kError, kDrop };
 
 struct PreprocessConfig {
@@ -23,7 +25,7 @@ struct PreprocessConfig {
     Eigen::Vector3d box_max_sensor_m =
         Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
     double voxel_downsample_m = 0.05;  ///< keep one point per voxel of this size; 0 disables
-    InvalidPointPolicy invalid_points = InvalidPointPolicy::kError;
+    InvalidPointPolicy invalid_points = InvalidPointPolicy::kDrop;
 };
 
 /// Counts of what preprocessing dropped, for logs and stats.json.
@@ -38,13 +40,15 @@ struct PreprocessStats {
     PreprocessStats& operator+=(const PreprocessStats& other);
 };
 
-/// Filters a scan. With InvalidPointPolicy::kError a NaN or infinite point throws DataError naming
-/// `source` and the point's index. Exact zero-range points (sensors' "no return") are always
-/// dropped and counted. Downsampling keeps, per voxel, the point closest to the voxel centre
-/// (deterministic, independent of point order); the downsampled output is sorted by voxel key, so
-/// it is identical element by element for any permutation of the input. Without downsampling
-/// the input order is kept. If `stats` is given it is overwritten with this scan's counts (add
-/// them up with +=). Throws ConfigError naming the key for an invalid configuration.
+/// Filters a scan. NaN or infinite points are dropped and counted in dropped_nonfinite; with
+/// InvalidPointPolicy::kError the first one throws DataError naming `source` and the point's
+/// index instead. Exact zero-range points (sensors' "no return") are always dropped and counted.
+/// A scan with no point left (or none to begin with) gives an empty result, not an error.
+/// Downsampling keeps, per voxel, the point closest to the voxel centre (deterministic, independent
+/// of point order); the downsampled output is sorted by voxel key, so it is identical element by
+/// element for any permutation of the input. Without downsampling the input order is kept. If
+/// `stats` is given it is overwritten with this scan's counts (add them up with +=). Throws
+/// ConfigError naming the key for an invalid configuration.
 std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
                                              const PreprocessConfig& config,
                                              const std::filesystem::path& source,

@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets of fuzz/ (one per reader) with clang, AddressSanitizer and
+# UndefinedBehaviorSanitizer into build-fuzz/, then runs each on its seed corpus
+# (fuzz/corpus/<target>/) for a bounded time. Fails if any target crashes, trips a sanitizer,
+# leaks, hangs (10 s per input), allocates more than 2 GB or throws anything but a shine::Error.
+#
+#   scripts/run_fuzzers.sh [SECONDS_PER_TARGET] [TARGET...]   (default: 30 s, every target)
+#
+# Inputs found along the way are kept in build-fuzz/corpus/<target>/ (reused by the next run);
+# a failing input is saved as build-fuzz/artifacts/<target>/crash-* (or leak-*, timeout-*, oom-*)
+# and can be replayed with `build-fuzz/fuzz/<target> FILE`. Needs ShineVDB's own dependencies
+# (scripts/setup.sh installs them); installs clang and libFuzzer when missing (Debian 12).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+seconds="${1:-30}"
+[ $# -gt 0 ] && shift
+all_targets=(fuzz_kitti_bin fuzz_poses fuzz_calib fuzz_tum fuzz_ply fuzz_pcd fuzz_config_yaml
+             fuzz_vdb)
+targets=("$@")
+[ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
+jobs="${SHINE_BUILD_JOBS:-$(nproc)}"
+
+# clang and its libFuzzer runtime (libclang_rt.fuzzer-x86_64.a is in libclang-rt-14-dev).
+EXTRA_PACKAGES=(clang libclang-rt-14-dev)
+missing=()
+for p in "${EXTRA_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "run_fuzzers: installing ${missing[*]}"
+    SUDO=""
+    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DSHINE_BUILD_FUZZERS=ON -DSHINE_BUILD_TESTS=OFF \
+    -DCMAKE_CXX_FLAGS="-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer" \
+    >/dev/null
+cmake --build build-fuzz --target "${targets[@]}" -j"$jobs"
+
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
+# UBSan checks are built recoverable so that the suppressions (known reports in third-party
+# headers) apply; halt_on_error makes every other report fatal.
+export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1:suppressions=$PWD/fuzz/ubsan_suppressions.txt}"
+# Leaks inside OpenVDB's reader on damaged files (not ours) are listed in lsan_suppressions.txt.
+export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$PWD/fuzz/lsan_suppressions.txt:print_suppressions=0}"
+failed=()
+summary=()
+for t in "${targets[@]}"; do
+    seeds="fuzz/corpus/$t"
+    work="build-fuzz/corpus/$t"
+    artifacts="build-fuzz/artifacts/$t"
+    log="build-fuzz/$t.log"
+    mkdir -p "$work" "$artifacts"
+    echo "run_fuzzers: $t for ${seconds} s"
+    # New inputs go to the first directory; the committed seeds stay untouched.
+    if "build-fuzz/fuzz/$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+        -print_final_stats=1 -artifact_prefix="$artifacts/" "$work" "$seeds" >"$log" 2>&1; then
+        status=ok
+    else
+        status=FAILED
+        failed+=("$t")
+        tail -n 40 "$log"
+    fi
+    runs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$' || echo "?")
+    summary+=("$(printf '%-18s %-6s %10s executions' "$t" "$status" "$runs")")
+done
+
+printf '%s\n' "${summary[@]}"
+if [ ${#failed[@]} -gt 0 ]; then
+    echo "run_fuzzers: ${failed[*]} failed; inputs in build-fuzz/artifacts/, logs in build-fuzz/*.log" >&2
+    exit 1
+fi
+echo "run_fuzzers: no failures"
