@@ -2,8 +2,12 @@
 
 #include <sys/resource.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <thread>
+
+#include "shine/core/error.hpp"
+#include "shine/sim/lidar_simulator.hpp"
 
 namespace shine::cli {
 
@@ -22,6 +26,30 @@ std::size_t peak_rss_bytes() {
 std::filesystem::path bundled_example_dir() {
     if (const char* env = std::getenv("SHINE_EXAMPLE_DIR")) return env;
     return std::filesystem::path(SHINE_SOURCE_DIR) / "examples" / "street";
+}
+
+std::filesystem::path resolve_data_dir(const std::string& data, bool quiet) {
+    if (!data.empty()) return data;
+    const std::filesystem::path dir = bundled_example_dir();
+    if (!std::filesystem::exists(dir / "poses.txt")) {
+        std::fprintf(stderr, "shine: simulating the bundled example street into %s\n", dir.c_str());
+        sim::SimulationConfig sim_config;
+        sim_config.show_progress = !quiet;
+        sim::simulate_sequence(sim_config, dir);
+    }
+    return dir;
+}
+
+std::filesystem::path resolve_reference(const std::filesystem::path& data,
+                                        const std::string& ref_path, bool no_eval) {
+    std::filesystem::path ref = ref_path;
+    if (ref.empty() && !no_eval && std::filesystem::exists(data / "gt_mesh.ply")) {
+        ref = data / "gt_mesh.ply";
+    }
+    if (!ref.empty() && !std::filesystem::is_regular_file(ref)) {
+        throw IoError("reference mesh '" + ref.string() + "' does not exist");
+    }
+    return ref;
 }
 
 }  // namespace shine::cli

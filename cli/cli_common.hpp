@@ -19,6 +19,16 @@ std::size_t peak_rss_bytes();
 /// Where the bundled example street lives (simulated on first use).
 std::filesystem::path bundled_example_dir();
 
+/// The sequence directory a subcommand works on: `data`, or when it is empty the bundled example
+/// street, simulated there on first use (with a progress line unless `quiet`).
+std::filesystem::path resolve_data_dir(const std::string& data, bool quiet);
+
+/// The reference mesh to evaluate against: `ref_path` if given, else `data`/gt_mesh.ply when it
+/// exists and `no_eval` is false, else empty (no evaluation). Throws IoError if `ref_path` names
+/// a file that does not exist.
+std::filesystem::path resolve_reference(const std::filesystem::path& data,
+                                        const std::string& ref_path, bool no_eval);
+
 /// Seconds since `start`.
 inline double seconds_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

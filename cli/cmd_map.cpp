@@ -4,11 +4,10 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "cli_common.hpp"
 #include "command_registry.hpp"
-#include "shine/bake/level_set_bake.hpp"
-#include "shine/bake/level_set_file.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
@@ -17,9 +16,8 @@
 #include "shine/io/ply.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/map/map_file.hpp"
-#include "shine/mapper/batch_mapper.hpp"
-#include "shine/mesh/level_set_mesh.hpp"
-#include "shine/sim/lidar_simulator.hpp"
+#include "shine/mapper/incremental_sequence.hpp"
+#include "shine/mapper/map_sequence.hpp"
 
 namespace shine::cli {
 namespace {
@@ -39,18 +37,56 @@ struct MapOptions {
     bool no_eval = false;
     bool quiet = false;
     bool print_config = false;
+    bool half_features = false;
     std::string mode = "batch";
+    int mesh_every = -1;
 };
 
 void write_json(const fs::path& path, const nlohmann::json& json) {
     write_stream_atomically(path, [&](std::ostream& out) { out << json.dump(2) << "\n"; });
 }
 
+/// Per-frame timings (median over the run, with the thread count) and progress meshes.
+void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json& json) {
+    const IncrementalMapper& mapper = *mapped.mapper;
+    const IncrementalConfig& inc = mapper.config().incremental;
+    nlohmann::json frames = nlohmann::json::array();
+    for (const IncrementalFrameStats& f : mapper.frames()) {
+        frames.push_back({{"rays", f.rays},
+                          {"new_corners", f.new_corners},
+                          {"rays_with_normal", f.rays_with_normal},
+                          {"seconds", f.total_seconds},
+                          {"train_seconds", f.train_seconds},
+                          {"importance_seconds", f.importance_seconds},
+                          {"bce", f.bce},
+                          {"regularization", f.regularization}});
+    }
+    nlohmann::json meshes = nlohmann::json::array();
+    for (const ProgressMesh& m : mapped.progress_meshes) {
+        meshes.push_back({{"frame", m.frame},
+                          {"path", m.path.string()},
+                          {"triangles", m.triangles},
+                          {"bake_mesh_seconds", m.bake_seconds},
+                          {"write_seconds", m.write_seconds}});
+    }
+    json["incremental"] = {{"iterations_per_frame", inc.iterations_per_frame},
+                           {"regularization_weight", inc.importance.regularization_weight},
+                           {"importance_cap", inc.importance.importance_cap},
+                           {"decoder_weights", inc.decoder_weights},
+                           {"median_seconds_per_frame", mapper.median_frame_seconds()},
+                           {"threads_used", static_cast<int>(tbb::global_control::active_value(
+                                                tbb::global_control::max_allowed_parallelism))},
+                           {"state_bytes", mapper.state_bytes()},
+                           {"frames", frames},
+                           {"progress_meshes", meshes}};
+}
+
 int run_map(const MapOptions& opt) {
     const auto start_total = std::chrono::steady_clock::now();
     Progress::set_globally_enabled(!opt.quiet);
-    if (opt.mode != "batch") {
-        throw ConfigError("--mode " + opt.mode + " is not available yet (only 'batch')");
+    const bool incremental = opt.mode == "incremental";
+    if (opt.mode != "batch" && !incremental) {
+        throw ConfigError("--mode must be 'batch' or 'incremental', got '" + opt.mode + "'");
     }
     MapperConfig config;
     if (!opt.config_path.empty()) load_config_yaml(opt.config_path, config);
@@ -61,6 +97,8 @@ int run_map(const MapOptions& opt) {
     if (opt.threads >= 0) config.threads = opt.threads;
     if (opt.iterations >= 0) config.iterations = opt.iterations;
     if (opt.seed >= 0) config.seed = static_cast<std::uint64_t>(opt.seed);
+    if (opt.half_features) config.octree.feature_precision = FeaturePrecision::kFloat16;
+    if (opt.mesh_every >= 0) config.incremental.mesh_every = opt.mesh_every;
     config.finalize();
     if (opt.print_config) {
         std::printf("%s", config_to_yaml(config).c_str());
@@ -68,71 +106,37 @@ int run_map(const MapOptions& opt) {
     }
     auto threads = limit_threads(config.threads);
 
-    // Data: the bundled street unless a directory is given; simulated on first use.
-    fs::path data = opt.data;
-    if (data.empty()) {
-        data = bundled_example_dir();
-        if (!fs::exists(data / "poses.txt")) {
-            std::fprintf(stderr, "shine: simulating the bundled example street into %s\n",
-                         data.c_str());
-            sim::SimulationConfig sim_config;
-            sim_config.show_progress = !opt.quiet;
-            sim::simulate_sequence(sim_config, data);
-        }
-    }
+    const fs::path data = resolve_data_dir(opt.data, opt.quiet);
     ScanSequenceOptions seq_options;
     seq_options.first_frame = opt.first_frame;
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
     const ScanSequence sequence = ScanSequence::open(data, seq_options);
-    fs::path ref = opt.ref_path;
-    if (ref.empty() && !opt.no_eval && fs::exists(data / "gt_mesh.ply")) ref = data / "gt_mesh.ply";
-    if (!ref.empty() && !fs::is_regular_file(ref)) {
-        throw IoError("reference mesh '" + ref.string() + "' does not exist");
-    }
+    const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
     const fs::path out = opt.out;
     ensure_directory(out);
 
-    BatchMapper mapper(config);
-    {
-        Progress progress("load", sequence.size());
-        for (std::size_t i = 0; i < sequence.size(); ++i) {
-            mapper.add_scan(sequence.load(i));
-            progress.update(i + 1, std::to_string(mapper.sdf().octree.num_corners()) + " corners");
-        }
-        progress.finish(std::to_string(mapper.stats().rays) + " rays, " +
-                        std::to_string(mapper.sdf().octree.num_corners()) + " corners");
+    std::optional<SequenceMap> batch_map;
+    std::optional<IncrementalSequenceMap> incremental_map;
+    if (incremental) {
+        incremental_map = map_sequence_incremental(config, sequence, out);
+    } else {
+        batch_map = map_sequence(config, sequence, out);
     }
-    {
-        Progress progress("train", static_cast<std::size_t>(config.iterations));
-        mapper.train([&](std::size_t done, double bce) {
-            char detail[64];
-            std::snprintf(detail, sizeof(detail), "bce %.4f", bce);
-            progress.update(done, detail);
-        });
-        progress.finish();
-    }
-    const NeuralSdf& sdf = mapper.sdf();
-    const std::string config_yaml = config_to_yaml(config);
-    auto t0 = std::chrono::steady_clock::now();
-    save_neural_map(out / "map.vdb", sdf, config_yaml);
-    const double save_seconds = seconds_since(t0);
+    const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
+    const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();
+    const BakeStats& bake_stats = products.bake;
+    const TriangleMesh& mesh = products.mesh;
+    const double save_seconds = products.save_seconds;
+    const double bake_seconds = products.bake_seconds;
+    const double mesh_seconds = products.mesh_seconds;
 
-    t0 = std::chrono::steady_clock::now();
-    BakeStats bake_stats;
-    auto surface = bake_level_set(sdf, config.bake, &bake_stats);
-    write_level_set(out / "surface.vdb", surface);
-    const double bake_seconds = seconds_since(t0);
-
-    t0 = std::chrono::steady_clock::now();
-    const TriangleMesh mesh = mesh_level_set(*surface, config.mesh);
-    write_ply_mesh(out / "mesh.ply", mesh);
-    const double mesh_seconds = seconds_since(t0);
-
-    const MappingStats& stats = mapper.stats();
+    const MappingStats& stats =
+        incremental ? incremental_map->mapper->stats() : batch_map->mapper->stats();
     nlohmann::json json;
     json["data"] = data.string();
+    json["mode"] = opt.mode;
     json["frames"] = stats.frames;
     json["rays"] = stats.rays;
     json["threads"] = config.threads;
@@ -153,12 +157,12 @@ int run_map(const MapOptions& opt) {
                        {"bake", bake_seconds},
                        {"mesh", mesh_seconds},
                        {"total", seconds_since(start_total)}};
-    json["seconds_per_frame"] =
-        stats.frames ? (stats.load_seconds + stats.allocate_seconds + stats.normals_seconds +
-                        stats.train_seconds) /
-                           static_cast<double>(stats.frames)
-                     : 0.0;
+    json["seconds_per_frame"] = stats.frames ? (stats.load_seconds + stats.allocate_seconds +
+                                                stats.normals_seconds + stats.train_seconds) /
+                                                   static_cast<double>(stats.frames)
+                                             : 0.0;
     json["map"] = {{"corners", sdf.octree.num_corners()},
+                   {"feature_precision", to_string(sdf.octree.feature_precision())},
                    {"feature_bytes", sdf.octree.feature_bytes()},
                    {"structure_bytes", sdf.octree.structure_bytes()},
                    {"decoder_bytes", sdf.decoder.num_params() * sizeof(float)},
@@ -166,19 +170,25 @@ int run_map(const MapOptions& opt) {
                    {"file_bytes", file_bytes(out / "map.vdb")}};
     json["surface"] = {{"voxel_size_m", bake_stats.voxel_size_m},
                        {"active_voxels", bake_stats.active_voxels},
-                       {"mem_bytes", surface->memUsage()},
+                       {"mem_bytes", products.surface_mem_bytes},
                        {"file_bytes", file_bytes(out / "surface.vdb")}};
     json["mesh"] = {{"vertices", mesh.vertices.size()}, {"triangles", mesh.triangles.size()}};
     json["loss"] = {{"bce", stats.final_bce}, {"eikonal", stats.final_eikonal}};
+    if (incremental) add_incremental_stats(*incremental_map, json);
 
     std::printf("mapped %zu frames (%zu rays) in %.1f s: %.3f s/frame, map %.2f MB (%zu corners)\n",
                 stats.frames, stats.rays, seconds_since(start_total),
                 json["seconds_per_frame"].get<double>(), sdf.memory_bytes() / 1e6,
                 sdf.octree.num_corners());
+    if (incremental) {
+        std::printf("incremental: median %.3f s/frame with %d threads\n",
+                    json["incremental"]["median_seconds_per_frame"].get<double>(),
+                    json["incremental"]["threads_used"].get<int>());
+    }
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
                 (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), mesh.triangles.size());
     if (!ref.empty()) {
-        t0 = std::chrono::steady_clock::now();
+        const auto t0 = std::chrono::steady_clock::now();
         const MeshMetrics metrics = evaluate_meshes(mesh, read_ply_mesh(ref));
         json["eval"] = nlohmann::json::parse(metrics_to_json(metrics));
         json["eval"]["reference"] = ref.string();
@@ -205,7 +215,12 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)");
     cmd->add_option("--iterations", opt->iterations, "Optimisation steps (batch mode)");
     cmd->add_option("--seed", opt->seed, "Random seed (features, decoder, sampling)");
-    cmd->add_option("--mode", opt->mode, "batch (incremental: not yet available)");
+    cmd->add_option("--mode", opt->mode,
+                    "batch (all scans, decoder trained) or incremental (scan by scan, pretrained "
+                    "frozen decoder, importance weights against forgetting)")
+        ->capture_default_str();
+    cmd->add_option("--mesh-every", opt->mesh_every,
+                    "Incremental mode: write OUT/progress/mesh_NNNNNN.ply every K frames");
     cmd->add_option("--first-frame", opt->first_frame, "First scan index")->capture_default_str();
     cmd->add_option("--last-frame", opt->last_frame, "Last scan index, -1 = all")
         ->capture_default_str();
@@ -213,6 +228,8 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     cmd->add_option("--poses", opt->poses_path, "Pose file (default: found in DATA)");
     cmd->add_option("--ref", opt->ref_path,
                     "Reference mesh to evaluate against (default: DATA/gt_mesh.ply if present)");
+    cmd->add_flag("--half-features", opt->half_features,
+                  "Store the features in float16 (map.feature_precision: float16)");
     cmd->add_flag("--no-eval", opt->no_eval, "Skip the evaluation");
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
     cmd->add_flag("--print-config", opt->print_config,

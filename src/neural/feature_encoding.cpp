@@ -28,27 +28,52 @@ void encode_point(CellLookup& lookup, const FeatureOctree& octree, const Eigen::
     }
 }
 
-void gather_feature(const EncodedPoint& encoded, const float* features, int feature_dim,
-                    float* feature_out) {
+namespace {
+
+template <typename T>
+void gather_feature_impl(const EncodedPoint& encoded, const T* features, int feature_dim,
+                         float* feature_out) {
     std::fill(feature_out, feature_out + feature_dim, 0.0f);
     for (int c = 0; c < encoded.num_corners; ++c) {
-        const float* f = features + std::size_t(encoded.rows[c]) * feature_dim;
+        const T* f = features + std::size_t(encoded.rows[c]) * feature_dim;
         const float w = encoded.weights[c];
-        for (int l = 0; l < feature_dim; ++l) feature_out[l] += w * f[l];
+        for (int l = 0; l < feature_dim; ++l) feature_out[l] += w * static_cast<float>(f[l]);
     }
 }
 
-void feature_jacobian(const EncodedPoint& encoded, const float* features, int feature_dim,
-                      float* jacobian_out) {
+template <typename T>
+void feature_jacobian_impl(const EncodedPoint& encoded, const T* features, int feature_dim,
+                           float* jacobian_out) {
     std::fill(jacobian_out, jacobian_out + 3 * feature_dim, 0.0f);
     for (int c = 0; c < encoded.num_corners; ++c) {
-        const float* f = features + std::size_t(encoded.rows[c]) * feature_dim;
+        const T* f = features + std::size_t(encoded.rows[c]) * feature_dim;
         const float* g = encoded.weight_gradients_per_m[c];
         for (int l = 0; l < feature_dim; ++l) {
-            jacobian_out[l * 3 + 0] += f[l] * g[0];
-            jacobian_out[l * 3 + 1] += f[l] * g[1];
-            jacobian_out[l * 3 + 2] += f[l] * g[2];
+            const float fl = static_cast<float>(f[l]);
+            jacobian_out[l * 3 + 0] += fl * g[0];
+            jacobian_out[l * 3 + 1] += fl * g[1];
+            jacobian_out[l * 3 + 2] += fl * g[2];
         }
+    }
+}
+
+}  // namespace
+
+void gather_feature(const EncodedPoint& encoded, FeatureTableView features, int feature_dim,
+                    float* feature_out) {
+    if (features.f16) {
+        gather_feature_impl(encoded, features.f16, feature_dim, feature_out);
+    } else {
+        gather_feature_impl(encoded, features.f32, feature_dim, feature_out);
+    }
+}
+
+void feature_jacobian(const EncodedPoint& encoded, FeatureTableView features, int feature_dim,
+                      float* jacobian_out) {
+    if (features.f16) {
+        feature_jacobian_impl(encoded, features.f16, feature_dim, jacobian_out);
+    } else {
+        feature_jacobian_impl(encoded, features.f32, feature_dim, jacobian_out);
     }
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "shine/core/error.hpp"
@@ -22,27 +23,108 @@ std::uint64_t mix64(std::uint64_t x) {
     return x ^ (x >> 31);
 }
 
-template <typename AccessorT>
-bool lookup_cell(AccessorT& accessor, double cell_size_m, const Eigen::Vector3f& p,
-                 LevelCorners& out) {
+using IndexAccessor = openvdb::tree::ValueAccessor<const IndexTree, false>;
+
+openvdb::Coord to_coord(const Eigen::Vector3i& v) { return openvdb::Coord(v.x(), v.y(), v.z()); }
+
+bool lookup_cell(IndexAccessor& accessor, const LevelIndex& level, double cell_size_m,
+                 const Eigen::Vector3f& p, LevelCorners& out) {
+    const openvdb::Coord& shift = level.shift;
     const double inv = 1.0 / cell_size_m;
     const double gx = p.x() * inv, gy = p.y() * inv, gz = p.z() * inv;
     const double fx = std::floor(gx), fy = std::floor(gy), fz = std::floor(gz);
     out.t[0] = static_cast<float>(gx - fx);
     out.t[1] = static_cast<float>(gy - fy);
     out.t[2] = static_cast<float>(gz - fz);
-    const openvdb::Coord base(static_cast<int>(fx), static_cast<int>(fy), static_cast<int>(fz));
+    const openvdb::Coord base(static_cast<int>(fx) + shift.x(), static_cast<int>(fy) + shift.y(),
+                              static_cast<int>(fz) + shift.z());
     for (int c = 0; c < 8; ++c) {
-        const openvdb::Coord corner =
-            base.offsetBy(kCornerOffset[c][0], kCornerOffset[c][1], kCornerOffset[c][2]);
-        const std::int32_t row = accessor.getValue(corner);
+        const std::int32_t row =
+            index_row(accessor, level,
+                      base.offsetBy(kCornerOffset[c][0], kCornerOffset[c][1], kCornerOffset[c][2]));
         if (row < 0) return false;
         out.rows[c] = row;
     }
     return true;
 }
 
+FeatureOctreeConfig validated(const FeatureOctreeConfig& config) {
+    if (!(config.leaf_size_m > 0.0) || !std::isfinite(config.leaf_size_m)) {
+        throw ConfigError("leaf_size_m must be a positive number of metres, got " +
+                          std::to_string(config.leaf_size_m));
+    }
+    if (config.num_levels < 1 || config.num_levels > 8) {
+        throw ConfigError("num_levels must be between 1 and 8, got " +
+                          std::to_string(config.num_levels));
+    }
+    if (config.feature_dim < 1 || config.feature_dim > 64) {
+        throw ConfigError("feature_dim must be between 1 and 64, got " +
+                          std::to_string(config.feature_dim));
+    }
+    return config;
+}
+
+/// Largest multiple of `step` not above `v` (step > 0).
+int floor_to_multiple(int v, int step) {
+    const int q = v / step;
+    return (q * step > v ? q - 1 : q) * step;
+}
+
 }  // namespace
+
+openvdb::Coord choose_index_shift(const openvdb::CoordBBox& first_cells) {
+    constexpr int kRootChildDim = static_cast<int>(IndexTree::RootNodeType::ChildNodeType::DIM);
+    constexpr int kLeafDim = static_cast<int>(IndexLeaf::DIM);
+    constexpr int kMiddle = kRootChildDim / 2;  // a multiple of the leaf size
+    const openvdb::Coord lo = first_cells.min(), hi = first_cells.max();
+    // Whole leaves in x and y keep the leaf alignment of the unshifted grid there.
+    return openvdb::Coord(kMiddle - floor_to_multiple(lo.x() + (hi.x() - lo.x()) / 2, kLeafDim),
+                          kMiddle - floor_to_multiple(lo.y() + (hi.y() - lo.y()) / 2, kLeafDim),
+                          kMiddle - lo.z());
+}
+
+void repack_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& new_row) {
+    // Sized exactly: structure_bytes() counts the capacity.
+    std::vector<std::int32_t> rows;
+    rows.reserve(level.grid->tree().activeVoxelCount());
+    std::vector<LeafSlots> leaves;
+    leaves.reserve(level.grid->tree().leafCount());
+    std::unique_ptr<IndexAccessor> fresh_accessor;
+    if (fresh) fresh_accessor = std::make_unique<IndexAccessor>(*fresh);
+    for (auto leaf = level.grid->tree().beginLeaf(); leaf; ++leaf) {
+        const IndexLeaf* fresh_leaf =
+            fresh_accessor ? fresh_accessor->probeConstLeaf(leaf->origin()) : nullptr;
+        const openvdb::Index count = leaf->onVoxelCount();
+        const bool had_corners = !fresh_leaf || fresh_leaf->onVoxelCount() < count;
+        // The leaf's previous first slot (its transient data indexes the previous leaves).
+        std::size_t old_slot = had_corners ? level.leaves[leaf->transientData()].first_slot : 0;
+        LeafSlots slots;
+        slots.first_slot = static_cast<std::uint32_t>(rows.size());
+        openvdb::Index64 before = 0;
+        const auto& mask = leaf->getValueMask();
+        for (openvdb::Index w = 1; w < IndexLeaf::NodeMaskType::WORD_COUNT; ++w) {
+            before += openvdb::util::CountOn(mask.getWord<openvdb::Index64>(w - 1));
+            slots.word_prefix |= before << (9 * (w - 1));
+        }
+        if (!fresh_leaf) {
+            const auto begin = level.rows.begin() + static_cast<std::ptrdiff_t>(old_slot);
+            rows.insert(rows.end(), begin, begin + count);
+        } else {
+            // Old corners keep their order (and rows); new ones are slotted in between.
+            for (auto voxel = leaf->cbeginValueOn(); voxel; ++voxel) {
+                if (fresh_leaf->isValueOn(voxel.pos())) {
+                    rows.push_back(new_row(voxel.getCoord() - level.shift));
+                } else {
+                    rows.push_back(level.rows[old_slot++]);
+                }
+            }
+        }
+        leaf->setTransientData(static_cast<openvdb::Index32>(leaves.size()));
+        leaves.push_back(slots);
+    }
+    level.rows.swap(rows);
+    level.leaves.swap(leaves);
+}
 
 void FeatureOctree::initial_feature(std::uint64_t seed, int level, const Eigen::Vector3i& corner,
                                     float init_std, float* out, int feature_dim) {
@@ -57,26 +139,17 @@ void FeatureOctree::initial_feature(std::uint64_t seed, int level, const Eigen::
 }
 
 FeatureOctree::FeatureOctree(const FeatureOctreeConfig& config)
-    : config_(config), impl_(std::make_unique<FeatureOctreeImpl>()) {
-    if (!(config.leaf_size_m > 0.0) || !std::isfinite(config.leaf_size_m)) {
-        throw ConfigError("leaf_size_m must be a positive number of metres, got " +
-                          std::to_string(config.leaf_size_m));
-    }
-    if (config.num_levels < 1 || config.num_levels > 8) {
-        throw ConfigError("num_levels must be between 1 and 8, got " +
-                          std::to_string(config.num_levels));
-    }
-    if (config.feature_dim < 1 || config.feature_dim > 64) {
-        throw ConfigError("feature_dim must be between 1 and 64, got " +
-                          std::to_string(config.feature_dim));
-    }
-    openvdb::initialize();
+    : config_(validated(config)),
+      features_(config.feature_dim, config.feature_precision),
+      impl_(std::make_unique<FeatureOctreeImpl>()) {
     for (int level = 0; level < config.num_levels; ++level) {
-        auto grid = openvdb::Int32Grid::create(-1);
-        grid->setName("feature_level_" + std::to_string(level));
-        grid->setTransform(openvdb::math::Transform::createLinearTransform(cell_size_m(level)));
-        grid->setGridClass(openvdb::GRID_UNKNOWN);
-        impl_->level_grids.push_back(grid);
+        LevelIndex index;
+        index.grid = IndexGrid::create(false);
+        index.grid->setName("feature_level_" + std::to_string(level));
+        index.grid->setTransform(
+            openvdb::math::Transform::createLinearTransform(cell_size_m(level)));
+        index.grid->setGridClass(openvdb::GRID_UNKNOWN);
+        impl_->levels.push_back(std::move(index));
     }
 }
 
@@ -89,7 +162,8 @@ double FeatureOctree::cell_size_m(int level) const {
 }
 
 std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& points_map) {
-    const int dim = config_.feature_dim;
+    std::vector<std::unique_ptr<IndexTree>> fresh_trees(config_.num_levels);
+    std::vector<const IndexTree*> fresh(config_.num_levels, nullptr);
     std::size_t added = 0;
     for (int level = 0; level < config_.num_levels; ++level) {
         // Collect the distinct cells first so that each corner is visited once per cell.
@@ -109,64 +183,103 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
                 }
             }
         }
+        if (cells.empty()) continue;
         std::sort(
             cells.begin(), cells.end(), [](const Eigen::Vector3i& a, const Eigen::Vector3i& b) {
                 return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
             });
         cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
 
-        auto accessor = impl_->level_grids[level]->getAccessor();
+        LevelIndex& index = impl_->levels[level];
+        if (!index.shift_chosen) {
+            openvdb::CoordBBox bbox;
+            for (const auto& cell : cells) {
+                bbox.expand(to_coord(cell));
+                bbox.expand(to_coord(cell).offsetBy(1));
+            }
+            index.shift = choose_index_shift(bbox);
+            index.shift_chosen = true;
+            index.grid->transform().postTranslate(-index.shift.asVec3d() * cell_size_m(level));
+        }
+        auto accessor = index.grid->getAccessor();
+        fresh_trees[level] = std::make_unique<IndexTree>(false);
+        openvdb::tree::ValueAccessor<IndexTree> fresh_accessor(*fresh_trees[level]);
+        std::size_t added_here = 0;
         for (const auto& cell : cells) {
+            const openvdb::Coord origin = to_coord(cell) + index.shift;
             for (const auto& offset : kCornerOffset) {
-                const openvdb::Coord corner(cell.x() + offset[0], cell.y() + offset[1],
-                                            cell.z() + offset[2]);
-                if (accessor.getValue(corner) >= 0) continue;
-                const std::size_t row = features_.size() / dim;
-                if (row >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
-                    throw Error("feature map exceeds 2^31 corners; use a larger leaf size");
-                }
-                accessor.setValue(corner, static_cast<std::int32_t>(row));
-                features_.resize(features_.size() + dim);
-                initial_feature(config_.seed, level,
-                                Eigen::Vector3i(corner.x(), corner.y(), corner.z()),
-                                config_.init_std, features_.data() + row * dim, dim);
-                ++added;
+                const openvdb::Coord ijk = origin.offsetBy(offset[0], offset[1], offset[2]);
+                if (accessor.isValueOn(ijk)) continue;
+                accessor.setValueOn(ijk);
+                fresh_accessor.setValueOn(ijk);
+                ++added_here;
             }
         }
+        if (added_here > 0) fresh[level] = fresh_trees[level].get();
+        added += added_here;
+    }
+    if (added == 0) return 0;
+    const std::size_t old_rows = num_corners();
+    if (old_rows + added >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+        throw Error("feature map exceeds 2^31 corners; use a larger leaf size");
+    }
+    // New corners get rows appended to the table, in tree order; existing rows do not move.
+    features_.resize(old_rows + added);
+    const int dim = config_.feature_dim;
+    std::vector<float> initial(dim);
+    std::size_t next_row = old_rows;
+    for (int level = 0; level < config_.num_levels; ++level) {
+        if (!fresh[level]) continue;
+        repack_rows(impl_->levels[level], fresh[level], [&](const openvdb::Coord& corner) {
+            initial_feature(config_.seed, level,
+                            Eigen::Vector3i(corner.x(), corner.y(), corner.z()), config_.init_std,
+                            initial.data(), dim);
+            features_.set_row(next_row, initial.data());
+            return static_cast<std::int32_t>(next_row++);
+        });
     }
     return added;
 }
 
 bool FeatureOctree::find_cell(int level, const Eigen::Vector3f& point_map,
                               LevelCorners& out) const {
-    auto accessor = impl_->level_grids[level]->getConstUnsafeAccessor();
-    return lookup_cell(accessor, cell_size_m(level), point_map, out);
+    const LevelIndex& index = impl_->levels[level];
+    IndexAccessor accessor(index.grid->tree());
+    return lookup_cell(accessor, index, cell_size_m(level), point_map, out);
 }
 
 bool FeatureOctree::has_leaf_cell(const Eigen::Vector3i& cell) const {
-    auto accessor = impl_->level_grids[0]->getConstUnsafeAccessor();
+    const LevelIndex& index = impl_->levels[0];
+    IndexAccessor accessor(index.grid->tree());
+    const openvdb::Coord origin = to_coord(cell) + index.shift;
     for (const auto& offset : kCornerOffset) {
-        if (accessor.getValue(openvdb::Coord(cell.x() + offset[0], cell.y() + offset[1],
-                                             cell.z() + offset[2])) < 0) {
-            return false;
-        }
+        if (!accessor.isValueOn(origin.offsetBy(offset[0], offset[1], offset[2]))) return false;
     }
     return true;
 }
 
+std::int32_t FeatureOctree::corner_row(int level, const Eigen::Vector3i& corner) const {
+    const LevelIndex& index = impl_->levels.at(level);
+    IndexAccessor accessor(index.grid->tree());
+    return index_row(accessor, index, to_coord(corner) + index.shift);
+}
+
 std::vector<Eigen::Vector3i> FeatureOctree::cells(int level) const {
     std::vector<Eigen::Vector3i> cells;
-    const auto& grid = *impl_->level_grids.at(level);
-    auto accessor = grid.getConstUnsafeAccessor();
-    for (auto it = grid.cbeginValueOn(); it; ++it) {
+    const LevelIndex& index = impl_->levels.at(level);
+    IndexAccessor accessor(index.grid->tree());
+    for (auto it = index.grid->tree().cbeginValueOn(); it; ++it) {
         // Every allocated cell has its (0,0,0) corner allocated: test each corner as a cell origin.
         const openvdb::Coord c = it.getCoord();
         bool complete = true;
         for (int k = 1; k < 8 && complete; ++k) {
-            complete = accessor.getValue(c.offsetBy(kCornerOffset[k][0], kCornerOffset[k][1],
-                                                    kCornerOffset[k][2])) >= 0;
+            complete = accessor.isValueOn(
+                c.offsetBy(kCornerOffset[k][0], kCornerOffset[k][1], kCornerOffset[k][2]));
         }
-        if (complete) cells.emplace_back(c.x(), c.y(), c.z());
+        if (complete) {
+            const openvdb::Coord cell = c - index.shift;
+            cells.emplace_back(cell.x(), cell.y(), cell.z());
+        }
     }
     std::sort(cells.begin(), cells.end(), [](const Eigen::Vector3i& a, const Eigen::Vector3i& b) {
         return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
@@ -175,32 +288,35 @@ std::vector<Eigen::Vector3i> FeatureOctree::cells(int level) const {
 }
 
 std::size_t FeatureOctree::num_corners(int level) const {
-    return impl_->level_grids.at(level)->activeVoxelCount();
+    return impl_->levels.at(level).grid->activeVoxelCount();
 }
 
 std::size_t FeatureOctree::structure_bytes() const {
     std::size_t bytes = 0;
-    for (const auto& grid : impl_->level_grids) bytes += grid->memUsage();
+    for (const auto& level : impl_->levels) bytes += level.memory_bytes();
     return bytes;
 }
 
 std::size_t FeatureOctree::memory_bytes() const { return feature_bytes() + structure_bytes(); }
 
 struct CellLookup::Accessors {
-    std::vector<openvdb::Int32Grid::ConstUnsafeAccessor> levels;
+    std::vector<IndexAccessor> accessors;
+    std::vector<const LevelIndex*> levels;
 };
 
 CellLookup::CellLookup(const FeatureOctree& octree)
     : octree_(octree), accessors_(std::make_unique<Accessors>()) {
-    for (const auto& grid : octree.impl().level_grids) {
-        accessors_->levels.push_back(grid->getConstUnsafeAccessor());
+    for (const auto& level : octree.impl().levels) {
+        accessors_->accessors.emplace_back(level.grid->tree());
+        accessors_->levels.push_back(&level);
     }
 }
 
 CellLookup::~CellLookup() = default;
 
 bool CellLookup::find_cell(int level, const Eigen::Vector3f& point_map, LevelCorners& out) {
-    return lookup_cell(accessors_->levels[level], octree_.cell_size_m(level), point_map, out);
+    return lookup_cell(accessors_->accessors[level], *accessors_->levels[level],
+                       octree_.cell_size_m(level), point_map, out);
 }
 
 }  // namespace shine

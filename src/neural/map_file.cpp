@@ -2,8 +2,10 @@
 
 #include <openvdb/io/File.h>
 
+#include <algorithm>
 #include <cstring>
 #include <mutex>
+#include <type_traits>
 
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
@@ -15,61 +17,76 @@ namespace {
 constexpr char kFormatKey[] = "shine_format";
 constexpr char kFormatName[] = "shine-neural-map-1";
 
-/// OpenVDB metadata holding a float array (feature table, decoder weights). Tools that do not
-/// know the type keep it as opaque bytes, so the file stays readable by vdb_print.
-class FloatArrayMetadata : public openvdb::Metadata {
+/// OpenVDB metadata holding an array of T (feature table, decoder weights): "shine_float_array"
+/// (float32) or "shine_half_array" (float16, little-endian IEEE half as OpenVDB writes halves).
+/// Tools that do not know the type keep it as opaque bytes, so the file stays readable by
+/// vdb_print.
+template <typename T>
+class ArrayMetadata : public openvdb::Metadata {
   public:
-    using Ptr = openvdb::SharedPtr<FloatArrayMetadata>;
-    static constexpr const char* kTypeName = "shine_float_array";
+    using Ptr = openvdb::SharedPtr<ArrayMetadata>;
+    static const char* type_name() {
+        return std::is_same_v<T, float> ? "shine_float_array" : "shine_half_array";
+    }
 
-    FloatArrayMetadata() = default;
-    explicit FloatArrayMetadata(std::vector<float> values) : values_(std::move(values)) {}
+    ArrayMetadata() = default;
+    explicit ArrayMetadata(std::vector<T> values) : values_(std::move(values)) {}
 
-    const std::vector<float>& values() const { return values_; }
+    const std::vector<T>& values() const { return values_; }
 
-    static openvdb::Name staticTypeName() { return kTypeName; }
-    openvdb::Name typeName() const override { return kTypeName; }
+    static openvdb::Name staticTypeName() { return type_name(); }
+    openvdb::Name typeName() const override { return type_name(); }
     openvdb::Metadata::Ptr copy() const override {
-        return openvdb::Metadata::Ptr(new FloatArrayMetadata(values_));
+        return openvdb::Metadata::Ptr(new ArrayMetadata(values_));
     }
     void copy(const openvdb::Metadata& other) override {
-        const auto* o = dynamic_cast<const FloatArrayMetadata*>(&other);
+        const auto* o = dynamic_cast<const ArrayMetadata*>(&other);
         if (!o) OPENVDB_THROW(openvdb::TypeError, "incompatible metadata type");
         values_ = o->values_;
     }
-    std::string str() const override { return "float[" + std::to_string(values_.size()) + "]"; }
+    std::string str() const override {
+        return std::string(std::is_same_v<T, float> ? "float" : "half") + "[" +
+               std::to_string(values_.size()) + "]";
+    }
     bool asBool() const override { return !values_.empty(); }
     openvdb::Index32 size() const override {
-        return static_cast<openvdb::Index32>(values_.size() * sizeof(float));
+        return static_cast<openvdb::Index32>(values_.size() * sizeof(T));
     }
-    static openvdb::Metadata::Ptr create() {
-        return openvdb::Metadata::Ptr(new FloatArrayMetadata);
-    }
+    static openvdb::Metadata::Ptr create() { return openvdb::Metadata::Ptr(new ArrayMetadata); }
 
   protected:
     void readValue(std::istream& is, openvdb::Index32 num_bytes) override {
-        if (num_bytes % sizeof(float) != 0) {
-            OPENVDB_THROW(openvdb::IoError, "float array metadata of " << num_bytes << " bytes");
+        if (num_bytes % sizeof(T) != 0) {
+            OPENVDB_THROW(openvdb::IoError, type_name()
+                                                << " metadata of " << num_bytes << " bytes");
         }
-        values_.resize(num_bytes / sizeof(float));
+        values_.resize(num_bytes / sizeof(T));
         is.read(reinterpret_cast<char*>(values_.data()), num_bytes);
-        if (!is) OPENVDB_THROW(openvdb::IoError, "truncated float array metadata");
+        if (!is) OPENVDB_THROW(openvdb::IoError, "truncated " << type_name() << " metadata");
     }
     void writeValue(std::ostream& os) const override {
         os.write(reinterpret_cast<const char*>(values_.data()), size());
     }
 
   private:
-    std::vector<float> values_;
+    std::vector<T> values_;
 };
+
+using FloatArrayMetadata = ArrayMetadata<float>;
+using HalfArrayMetadata = ArrayMetadata<Imath::half>;
+static_assert(sizeof(Imath::half) == 2, "half must be 2 bytes");
 
 void register_metadata_types() {
     static std::once_flag once;
     std::call_once(once, [] {
         openvdb::initialize();
-        if (!openvdb::Metadata::isRegisteredType(FloatArrayMetadata::kTypeName)) {
-            openvdb::Metadata::registerType(FloatArrayMetadata::kTypeName,
+        if (!openvdb::Metadata::isRegisteredType(FloatArrayMetadata::type_name())) {
+            openvdb::Metadata::registerType(FloatArrayMetadata::type_name(),
                                             FloatArrayMetadata::create);
+        }
+        if (!openvdb::Metadata::isRegisteredType(HalfArrayMetadata::type_name())) {
+            openvdb::Metadata::registerType(HalfArrayMetadata::type_name(),
+                                            HalfArrayMetadata::create);
         }
     });
 }
@@ -84,6 +101,25 @@ auto required(const openvdb::MetaMap& meta, const std::string& key,
                       "' is missing or has the wrong type");
     }
     return m->value();
+}
+
+std::string shift_key(int level) { return "shine_level_" + std::to_string(level) + "_index_shift"; }
+
+/// The level's corners as a standard Int32Grid (OpenVDB's default 5-4-3 tree, registered
+/// everywhere): voxel = corner (unshifted), value = feature row, background -1.
+openvdb::Int32Grid::Ptr to_int32_grid(const LevelIndex& level, double cell_size_m) {
+    auto grid = openvdb::Int32Grid::create(-1);
+    grid->setName(level.grid->getName());
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(cell_size_m));
+    grid->setGridClass(openvdb::GRID_UNKNOWN);
+    auto accessor = grid->getAccessor();
+    for (auto leaf = level.grid->tree().cbeginLeaf(); leaf; ++leaf) {
+        std::size_t slot = level.leaves[leaf->transientData()].first_slot;
+        for (auto voxel = leaf->cbeginValueOn(); voxel; ++voxel) {
+            accessor.setValue(voxel.getCoord() - level.shift, level.rows[slot++]);
+        }
+    }
+    return grid;
 }
 
 }  // namespace
@@ -104,7 +140,22 @@ void save_neural_map(const std::filesystem::path& path, const NeuralSdf& sdf,
     meta.insertMeta("shine_seed", openvdb::Int64Metadata(static_cast<openvdb::Int64>(cfg.seed)));
     meta.insertMeta("shine_num_corners",
                     openvdb::Int64Metadata(static_cast<openvdb::Int64>(octree.num_corners())));
-    meta.insertMeta("shine_features", FloatArrayMetadata(octree.features()));
+    const FeatureTable& features = octree.features();
+    meta.insertMeta("shine_feature_precision",
+                    openvdb::StringMetadata(to_string(features.precision())));
+    if (features.precision() == FeaturePrecision::kFloat16) {
+        meta.insertMeta("shine_features",
+                        HalfArrayMetadata(std::vector<Imath::half>(
+                            features.halves(), features.halves() + features.size())));
+    } else {
+        meta.insertMeta("shine_features",
+                        FloatArrayMetadata(std::vector<float>(
+                            features.floats(), features.floats() + features.size())));
+    }
+    const auto& levels = octree.impl().levels;
+    for (int level = 0; level < cfg.num_levels; ++level) {
+        meta.insertMeta(shift_key(level), openvdb::Vec3IMetadata(levels[level].shift.asVec3i()));
+    }
     std::string hidden;
     for (int h : sdf.decoder.config().hidden_dims)
         hidden += (hidden.empty() ? "" : ",") + std::to_string(h);
@@ -116,7 +167,9 @@ void save_neural_map(const std::filesystem::path& path, const NeuralSdf& sdf,
     meta.insertMeta("shine_config", openvdb::StringMetadata(config_text));
 
     openvdb::GridPtrVec grids;
-    for (const auto& grid : octree.impl().level_grids) grids.push_back(grid);
+    for (int level = 0; level < cfg.num_levels; ++level) {
+        grids.push_back(to_int32_grid(levels[level], octree.cell_size_m(level)));
+    }
     write_file_atomically(path, [&](const std::filesystem::path& tmp) {
         try {
             openvdb::io::File file(tmp.string());
@@ -159,6 +212,16 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
         required<openvdb::DoubleMetadata>(*meta, "shine_allocation_margin_ratio", path);
     cfg.seed =
         static_cast<std::uint64_t>(required<openvdb::Int64Metadata>(*meta, "shine_seed", path));
+    // Maps written before half-precision features existed hold float32 features.
+    cfg.feature_precision = FeaturePrecision::kFloat32;
+    if (auto precision = meta->getMetadata<openvdb::StringMetadata>("shine_feature_precision")) {
+        try {
+            cfg.feature_precision =
+                parse_feature_precision(precision->value(), "shine_feature_precision");
+        } catch (const ConfigError& e) {
+            throw IoError("'" + path.string() + "': " + e.what());
+        }
+    }
     DecoderConfig decoder_cfg;
     decoder_cfg.input_dim = cfg.feature_dim;
     decoder_cfg.hidden_dims.clear();
@@ -190,16 +253,41 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
         throw IoError("'" + path.string() + "': decoder weights missing or of the wrong size");
     }
     sdf.decoder.params() = weights->values();
-    auto features = meta->getMetadata<FloatArrayMetadata>("shine_features");
     const auto num_corners = required<openvdb::Int64Metadata>(*meta, "shine_num_corners", path);
-    if (!features || num_corners < 0 ||
-        features->values().size() != static_cast<std::size_t>(num_corners) * cfg.feature_dim) {
-        throw IoError("'" + path.string() + "': feature table missing or of the wrong size");
+    FeatureTable file_table(cfg.feature_dim, cfg.feature_precision);
+    {
+        bool sized = false;
+        const std::size_t expected =
+            num_corners < 0 ? 0 : static_cast<std::size_t>(num_corners) * cfg.feature_dim;
+        if (cfg.feature_precision == FeaturePrecision::kFloat16) {
+            auto features = meta->getMetadata<HalfArrayMetadata>("shine_features");
+            sized = features && num_corners >= 0 && features->values().size() == expected;
+            if (sized) {
+                file_table.resize(static_cast<std::size_t>(num_corners));
+                std::copy(features->values().begin(), features->values().end(),
+                          file_table.halves());
+            }
+        } else {
+            auto features = meta->getMetadata<FloatArrayMetadata>("shine_features");
+            sized = features && num_corners >= 0 && features->values().size() == expected;
+            if (sized) {
+                file_table.resize(static_cast<std::size_t>(num_corners));
+                std::copy(features->values().begin(), features->values().end(),
+                          file_table.floats());
+            }
+        }
+        if (!sized) {
+            throw IoError("'" + path.string() + "': " + to_string(cfg.feature_precision) +
+                          " feature table missing or of the wrong size");
+        }
     }
     const auto origin = required<openvdb::Vec3DMetadata>(*meta, "shine_origin_world_m", path);
     sdf.origin_world_m = Eigen::Vector3d(origin.x(), origin.y(), origin.z());
 
-    auto& level_grids = sdf.octree.impl().level_grids;
+    // Rebuild each level's topology (shifted index space) and packed rows from its Int32Grid;
+    // every corner keeps the row the file gives it, so the table is used as stored.
+    auto& levels = sdf.octree.impl().levels;
+    std::vector<std::uint8_t> used(static_cast<std::size_t>(num_corners), 0);
     std::size_t corner_total = 0;
     for (int level = 0; level < cfg.num_levels; ++level) {
         const std::string name = "feature_level_" + std::to_string(level);
@@ -214,16 +302,35 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
                               "' refers to feature row " + std::to_string(*it) + " of " +
                               std::to_string(num_corners));
             }
+            if (used[*it]) {
+                throw IoError("'" + path.string() + "': feature row " + std::to_string(*it) +
+                              " belongs to more than one corner");
+            }
+            used[*it] = 1;
         }
         corner_total += found->activeVoxelCount();
-        found->setTransform(level_grids[level]->transform().copy());
-        level_grids[level] = found;
+        LevelIndex& index = levels[level];
+        if (auto shift = meta->getMetadata<openvdb::Vec3IMetadata>(shift_key(level))) {
+            index.shift = openvdb::Coord(shift->value());
+        } else if (!found->empty()) {  // maps written before the shift existed
+            index.shift = choose_index_shift(found->evalActiveVoxelBoundingBox());
+        }
+        index.shift_chosen = !found->empty();
+        index.grid->transform().postTranslate(-index.shift.asVec3d() *
+                                              sdf.octree.cell_size_m(level));
+        auto accessor = index.grid->getAccessor();
+        for (auto it = found->cbeginValueOn(); it; ++it) {
+            accessor.setValueOn(it.getCoord() + index.shift);
+        }
+        auto file_accessor = found->getConstAccessor();
+        repack_rows(index, &index.grid->tree(),
+                    [&](const openvdb::Coord& corner) { return file_accessor.getValue(corner); });
     }
     if (corner_total != static_cast<std::size_t>(num_corners)) {
         throw IoError("'" + path.string() + "': grids hold " + std::to_string(corner_total) +
                       " corners but the feature table has " + std::to_string(num_corners));
     }
-    sdf.octree.features() = features->values();
+    sdf.octree.features() = std::move(file_table);
     return loaded;
 }
 

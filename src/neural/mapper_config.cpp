@@ -89,6 +89,21 @@ Field invalid_policy(InvalidPointPolicy& field) {
         }};
 }
 
+Field text(std::string& field) {
+    return {[&field](const YAML::Node& node, const std::string& key) {
+                if (!node.IsScalar()) throw ConfigError("key '" + key + "' must be a string");
+                field = node.as<std::string>();
+            },
+            [&field](YAML::Emitter& out) { out << field; }};
+}
+
+Field precision(FeaturePrecision& field) {
+    return {[&field](const YAML::Node& node, const std::string& key) {
+                field = parse_feature_precision(node.as<std::string>(), key);
+            },
+            [&field](YAML::Emitter& out) { out << to_string(field); }};
+}
+
 constexpr double kInf = 1e300;
 
 using Section = std::vector<std::pair<std::string, Field>>;
@@ -105,7 +120,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"num_levels", number(c.octree.num_levels, 1, 8)},
           {"feature_dim", number(c.octree.feature_dim, 1, 64)},
           {"init_std", number(c.octree.init_std, 0.0, 10.0)},
-          {"allocation_margin_ratio", number(c.octree.allocation_margin_ratio, 0.0, 4.0)}}},
+          {"allocation_margin_ratio", number(c.octree.allocation_margin_ratio, 0.0, 4.0)},
+          {"feature_precision", precision(c.octree.feature_precision)}}},
         {"decoder", {{"hidden_dims", int_list(c.decoder.hidden_dims, 1, 1024)}}},
         {"sampling",
          {{"surface_samples", number(c.sampling.surface_samples, 0, 32)},
@@ -126,6 +142,15 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"decoder_learning_rate", number(c.trainer.decoder_adam.learning_rate, 1e-7, 10.0)},
           {"final_learning_rate_ratio", number(c.final_learning_rate_ratio, 0.0, 1.0)},
           {"train_decoder", boolean(c.trainer.train_decoder)}}},
+        {"incremental",
+         {{"iterations_per_frame", number(c.incremental.iterations_per_frame, 1, 1000000)},
+          {"regularization_weight",
+           number(c.incremental.importance.regularization_weight, 0.0, 1e12)},
+          {"importance_cap", number(c.incremental.importance.importance_cap, 1e-12, 1e30)},
+          {"decoder_weights", text(c.incremental.decoder_weights)},
+          {"mesh_every", number(c.incremental.mesh_every, 0, 1000000)},
+          {"surface_band_m", number(c.incremental.surface_band_m, 1e-3, 10.0)},
+          {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)}}},
         {"bake",
          {{"voxel_size_m", number(c.bake.voxel_size_m, 0.0, 100.0)},
           {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)},

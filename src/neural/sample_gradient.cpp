@@ -8,7 +8,7 @@ bool sample_loss_gradient(const NeuralSdf& sdf, CellLookup& lookup, DecoderWorks
                           const RaySample& sample, const SampleLossConfig& config,
                           EncodedPoint& encoded, SampleGradient& out, float* decoder_grads) {
     const int dim = sdf.octree.feature_dim();
-    const float* features = sdf.octree.features().data();
+    const FeatureTableView features = sdf.octree.features().data();
     const bool eikonal = config.eikonal_weight > 0.0f && sample.kind == SampleKind::kSurface;
     encode_point(lookup, sdf.octree, sample.point_map, eikonal, encoded);
     if (!encoded.valid()) return false;

@@ -1,15 +1,22 @@
 // The sparse hierarchical feature map (paper Sec. III-A, "Implicit Neural Map Representation").
 //
 // H levels of node-corner features. Level 0 is the finest (cell size = leaf_size_m); each coarser
-// level doubles the cell size. Every level is an OpenVDB grid whose voxels are the corners of that
-// level's cells: voxel (i,j,k) of level l sits at (i,j,k) * cell_size_m(l) in the map frame and
-// holds the row of its feature vector in one contiguous feature table shared by all levels. This
-// index-grid layout keeps OpenVDB's sparse, O(1)-average access (through ValueAccessors) while the
-// features themselves stay in a dense array that the optimiser, importance weights and
-// half-precision storage can address by row.
+// level doubles the cell size. Every level is an OpenVDB grid whose active voxels are the corners
+// of that level's cells: voxel (i,j,k) of level l sits at (i,j,k) * cell_size_m(l) in the map
+// frame. Each corner owns one row of a contiguous feature table shared by all levels (float32 or
+// float16, see feature_table.hpp). The grids keep OpenVDB's sparse, O(1)-average access (through
+// ValueAccessors) while the features stay in a dense array that the optimiser, importance weights
+// and half-precision storage address by row.
+//
+// Memory: in memory a level is a topology-only grid (1 bit per voxel, in a 3-3-3 tree) plus the
+// corners' rows packed leaf by leaf (a corner's slot is its leaf's first slot plus its rank among
+// the leaf's active voxels, as in NanoVDB's index grids): 4 bytes and 1 bit per corner instead of
+// OpenVDB Int32 leaves that are mostly empty. The index space of each level is shifted so that
+// the map's first scan sits in the middle of one root child and its lowest corner at the bottom of
+// a leaf node. On disk (map_file.hpp) every level is a standard Int32Grid of rows.
 //
 // A cell exists at a level when all 8 of its corners are allocated; allocation adds the cells
-// containing the given points at every level. The map only grows.
+// containing the given points at every level. The map only grows; a corner's row never changes.
 #pragma once
 
 #include <Eigen/Core>
@@ -17,6 +24,8 @@
 #include <cstdint>
 #include <memory>
 #include <vector>
+
+#include "shine/map/feature_table.hpp"
 
 namespace shine {
 
@@ -31,6 +40,8 @@ struct FeatureOctreeConfig {
     /// the SDF would be cut off.
     double allocation_margin_ratio = 0.5;
     std::uint64_t seed = 42;  ///< initial features depend only on (seed, level, corner)
+    /// Storage of the feature table (training keeps a float32 master copy of a float16 map).
+    FeaturePrecision feature_precision = FeaturePrecision::kFloat32;
 };
 
 /// Corner rows and interpolation weights of one query point at one level.
@@ -41,7 +52,7 @@ struct LevelCorners {
 
 class FeatureOctreeImpl;
 
-/// H OpenVDB index grids of node corners plus the contiguous feature table.
+/// H OpenVDB grids of node corners plus the contiguous feature table.
 class FeatureOctree {
   public:
     explicit FeatureOctree(const FeatureOctreeConfig& config);
@@ -56,8 +67,9 @@ class FeatureOctree {
     double cell_size_m(int level) const;
 
     /// Allocates, at every level, the cells that the cube of half-size allocation_margin_ratio *
-    /// leaf_size_m around each point (map frame) touches. Returns the number of corners added.
-    /// Not thread-safe with concurrent queries.
+    /// leaf_size_m around each point (map frame) touches. Returns the number of corners added;
+    /// their rows are appended to the feature table (existing rows never move). Not thread-safe
+    /// with concurrent queries.
     std::size_t allocate_cells(const std::vector<Eigen::Vector3f>& points_map);
 
     /// Finds the cell of `level` containing `point_map`; false if any of its corners is missing.
@@ -73,21 +85,21 @@ class FeatureOctree {
     std::vector<Eigen::Vector3i> leaf_cells() const { return cells(0); }
 
     /// Number of allocated corners (= feature rows) over all levels.
-    std::size_t num_corners() const { return features_.size() / config_.feature_dim; }
+    std::size_t num_corners() const { return features_.num_rows(); }
     std::size_t num_corners(int level) const;
+    /// Row of the corner with integer coordinates `corner` at `level`, or -1 if not allocated.
+    std::int32_t corner_row(int level, const Eigen::Vector3i& corner) const;
 
-    float* feature(std::int32_t row) {
-        return features_.data() + std::size_t(row) * config_.feature_dim;
-    }
-    const float* feature(std::int32_t row) const {
-        return features_.data() + std::size_t(row) * config_.feature_dim;
-    }
-    std::vector<float>& features() { return features_; }
-    const std::vector<float>& features() const { return features_; }
+    /// The feature table, one row per corner. Resizing it is the octree's job.
+    FeatureTable& features() { return features_; }
+    const FeatureTable& features() const { return features_; }
+    FeaturePrecision feature_precision() const { return features_.precision(); }
 
     /// Bytes of the map in memory: feature table plus the OpenVDB trees' memUsage().
     std::size_t memory_bytes() const;
-    std::size_t feature_bytes() const { return features_.size() * sizeof(float); }
+    std::size_t feature_bytes() const { return features_.bytes(); }
+    /// memUsage() of the level grids' trees (counted as for any OpenVDB grid) plus the packed
+    /// per-corner rows.
     std::size_t structure_bytes() const;
 
     /// Access for the serialisation code (map_file.cpp) and tests; others use the API above.
@@ -100,7 +112,7 @@ class FeatureOctree {
 
   private:
     FeatureOctreeConfig config_;
-    std::vector<float> features_;
+    FeatureTable features_;
     std::unique_ptr<FeatureOctreeImpl> impl_;
 };
 

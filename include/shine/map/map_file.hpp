@@ -1,7 +1,9 @@
-// The neural map on disk: a .vdb file with one Int32 grid per feature level (voxels = node corners,
-// values = rows of the feature table) and, as file metadata, the feature table, the decoder
-// weights, the map origin and the configuration. Standard OpenVDB tools (vdb_print) list the grids;
-// ShineVDB reloads the map and answers identical SDF queries.
+// The neural map on disk: a .vdb file with one standard Int32Grid per feature level (voxels = node
+// corners, values = rows of the feature table, OpenVDB's default 5-4-3 tree whatever the layout in
+// memory) and, as file metadata, the feature table (float32 "shine_float_array" or float16
+// "shine_half_array", named by "shine_feature_precision"; maps without that key are float32), the
+// decoder weights, the map origin, each level's index shift and the configuration. Standard OpenVDB
+// tools (vdb_print) list the grids; ShineVDB reloads the map and answers identical SDF queries.
 #pragma once
 
 #include <filesystem>

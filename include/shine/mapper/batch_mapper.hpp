@@ -37,7 +37,8 @@ class BatchMapper {
     /// scan fixes the map origin (its position rounded to whole kilometres).
     void add_scan(const Scan& scan);
 
-    /// Runs config.batch_iterations() optimisation steps; `on_progress(done, bce)` is called now and then.
+    /// Runs config.batch_iterations() optimisation steps; `on_progress(done, bce)` is called now
+    /// and then.
     void train(const std::function<void(std::size_t done, double bce)>& on_progress = {});
 
     const NeuralSdf& sdf() const { return *sdf_; }

@@ -8,11 +8,12 @@
 #include "shine/bake/level_set_bake.hpp"
 #include "shine/io/preprocess.hpp"
 #include "shine/map/feature_octree.hpp"
+#include "shine/mapper/incremental_config.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/decoder.hpp"
-#include "shine/sampling/surface_normals.hpp"
 #include "shine/sampling/ray_sampler.hpp"
+#include "shine/sampling/surface_normals.hpp"
 
 namespace shine {
 
@@ -25,7 +26,10 @@ struct MapperConfig {
     TrainerConfig trainer;
     /// Batch-mode optimisation steps; -1 (the default) = auto, batch_iterations().
     int iterations = -1;
-    float final_learning_rate_ratio = 0.1f;  ///< lr decays to this fraction (cosine) by the end
+    /// lr decays to this fraction (cosine) by the end (batch: of the run; incremental: of each
+    /// scan's steps)
+    float final_learning_rate_ratio = 0.1f;
+    IncrementalConfig incremental;  ///< `shine map --mode incremental`
     BakeConfig bake;
     MeshConfig mesh;
     int threads = 0;          ///< 0: all hardware threads

@@ -33,12 +33,13 @@ struct EncodedPoint {
 void encode_point(CellLookup& lookup, const FeatureOctree& octree, const Eigen::Vector3f& point_map,
                   bool with_gradients, EncodedPoint& out);
 
-/// F = sum over corners of weight * feature (length feature_dim).
-void gather_feature(const EncodedPoint& encoded, const float* features, int feature_dim,
+/// F = sum over corners of weight * feature (length feature_dim), in float whatever the table's
+/// precision (`features` is FeatureTable::data()).
+void gather_feature(const EncodedPoint& encoded, FeatureTableView features, int feature_dim,
                     float* feature_out);
 
 /// J = dF/dx, feature_dim x 3, row-major: J[l*3 + a] = sum_c feature_c[l] * dw_c/dx_a.
-void feature_jacobian(const EncodedPoint& encoded, const float* features, int feature_dim,
+void feature_jacobian(const EncodedPoint& encoded, FeatureTableView features, int feature_dim,
                       float* jacobian_out);
 
 }  // namespace shine

@@ -37,4 +37,10 @@ struct NormalConfig {
 /// no normal could be estimated. Parallel; deterministic.
 std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const NormalConfig& config);
 
+/// As above, but estimates normals only for the rays [ray_begin, ray_end) (zero elsewhere), still
+/// from the neighbourhoods among all of `rays`' endpoints: incremental mode estimates the
+/// current scan's normals with the recent scans' endpoints filling the gaps between its lines.
+std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const NormalConfig& config,
+                                                  std::size_t ray_begin, std::size_t ray_end);
+
 }  // namespace shine

@@ -1,0 +1,165 @@
+// `shine bench [DATA] -o OUT`: the memory/accuracy study -- ShineVDB and the TSDF baseline on the
+// same scans at several resolutions -> OUT/<method>_<size>/..., OUT/bench.csv, OUT/bench.json,
+// OUT/bench.md, OUT/memory_vs_chamfer.png, a table with the ShineVDB/TSDF ratios and the study's
+// checks.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <system_error>
+
+#include "cli_common.hpp"
+#include "command_registry.hpp"
+#include "shine/bench/bench_report.hpp"
+#include "shine/bench/bench_runner.hpp"
+#include "shine/bench/plot.hpp"
+#include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
+#include "shine/core/progress.hpp"
+#include "shine/io/ply.hpp"
+#include "shine/io/scan_sequence.hpp"
+
+namespace shine::cli {
+namespace {
+namespace fs = std::filesystem;
+
+struct BenchOptions {
+    std::string data;
+    std::string out = "out-bench";
+    std::string sizes_m = "0.1,0.2,0.5,1.0";
+    std::string config_path;
+    int threads = -1;
+    int iterations = -1;
+    long long seed = -1;
+    int first_frame = 0, last_frame = -1, frame_step = 1;
+    std::string poses_path;
+    std::string ref_path;
+    bool half_features = false;
+    bool no_eval = false;
+    bool quiet = false;
+};
+
+int run_bench(const BenchOptions& opt) {
+    const auto start_total = std::chrono::steady_clock::now();
+    Progress::set_globally_enabled(!opt.quiet);
+
+    // Every option is checked before any scan is read or any file written.
+    BenchConfig config;
+    config.sizes_m = parse_sizes_m(opt.sizes_m);
+    if (!opt.config_path.empty()) load_config_yaml(opt.config_path, config.shine);
+    if (opt.half_features) {
+        // Through the configuration's own parser, so the key stays defined in one place.
+        parse_config_yaml("map:\n  feature_precision: float16\n", "--half-features", config.shine);
+    }
+    if (opt.threads >= 0) config.shine.threads = opt.threads;
+    if (opt.iterations >= 0) config.shine.iterations = opt.iterations;
+    if (opt.seed >= 0) config.shine.seed = static_cast<std::uint64_t>(opt.seed);
+    for (const double size_m : config.sizes_m) {
+        shine_config_at(config, size_m);
+        tsdf_config_at(config, size_m);
+    }
+    auto threads = limit_threads(config.shine.threads);
+
+    const fs::path data = resolve_data_dir(opt.data, opt.quiet);
+    ScanSequenceOptions seq_options;
+    seq_options.first_frame = opt.first_frame;
+    seq_options.last_frame = opt.last_frame;
+    seq_options.frame_step = opt.frame_step;
+    seq_options.poses_path = opt.poses_path;
+    ScanSequence sequence = ScanSequence::open(data, seq_options);
+    const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
+    std::unique_ptr<TriangleMesh> reference;
+    if (!ref.empty()) reference = std::make_unique<TriangleMesh>(read_ply_mesh(ref));
+    const fs::path out = opt.out;
+    ensure_directory(out);
+
+    const BenchScans scans(std::move(sequence), config.scan_cache_bytes);
+    std::vector<BenchRow> rows;
+    for (std::size_t k = 0; k < config.sizes_m.size(); ++k) {
+        const double size_m = config.sizes_m[k];
+        if (!opt.quiet) {
+            std::fprintf(stderr, "== size %s m (%zu/%zu): ShineVDB leaf, TSDF voxel %s m ==\n",
+                         format_size_m(size_m).c_str(), k + 1, config.sizes_m.size(),
+                         format_size_m(size_m).c_str());
+        }
+        for (BenchRow& row : run_bench_size(config, size_m, scans, reference.get(), out)) {
+            rows.push_back(row);
+        }
+    }
+
+    BenchInfo info;
+    info.data = data.string();
+    info.reference = ref.string();
+    info.config = opt.config_path;
+    info.threads = config.shine.threads;
+    info.iterations = config.shine.iterations;
+    info.half_features = opt.half_features;
+    info.trunc_voxels = config.trunc_voxels;
+    write_stream_atomically(out / "bench.csv", [&](std::ostream& os) { os << rows_to_csv(rows); });
+    write_stream_atomically(out / "bench.json",
+                            [&](std::ostream& os) { os << bench_to_json(rows, info); });
+    write_stream_atomically(out / "bench.md",
+                            [&](std::ostream& os) { os << bench_to_markdown(rows, info); });
+    const fs::path plot = out / "memory_vs_chamfer.png";
+    if (reference) {
+        plot_memory_vs_chamfer(rows).write_png(plot);
+    } else {
+        std::error_code ignored;
+        fs::remove(plot, ignored);  // a plot of an earlier run would not match these rows
+    }
+
+    std::printf("%s\n", format_rows_table(rows).c_str());
+    std::printf("ShineVDB / TSDF per size (S = ShineVDB, T = TSDF):\n%s\n",
+                format_ratios_table(compute_ratios(rows)).c_str());
+    if (reference) {
+        std::printf("checks (against %s):\n%s\n", ref.c_str(),
+                    format_checks(compute_checks(rows)).c_str());
+    } else {
+        std::printf("no reference mesh: accuracy columns, checks (b), (c) and the plot skipped\n");
+        std::printf("%s\n", format_checks(compute_checks(rows)).c_str());
+    }
+    std::printf("wrote %s, %s, %s%s%s (%zu runs) in %.1f s\n", (out / "bench.csv").c_str(),
+                (out / "bench.json").c_str(), (out / "bench.md").c_str(), reference ? ", " : "",
+                reference ? plot.c_str() : "", rows.size(), seconds_since(start_total));
+    return 0;
+}
+
+const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
+    auto opt = std::make_shared<BenchOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "bench",
+        "Memory/accuracy study: ShineVDB and the TSDF baseline on the same scans at several "
+        "resolutions -> OUT/bench.csv, OUT/bench.json, OUT/bench.md, OUT/memory_vs_chamfer.png "
+        "(see "
+        "docs/benchmark.md)");
+    cmd->add_option("data", opt->data,
+                    "Sequence directory (KITTI layout or .ply/.pcd scans with poses); default: the "
+                    "bundled example street, simulated on first use");
+    cmd->add_option("-o,--output", opt->out, "Output directory")->capture_default_str();
+    cmd->add_option("--sizes-m", opt->sizes_m,
+                    "Resolutions in metres, comma-separated: ShineVDB leaf size and TSDF voxel "
+                    "size (truncation 3 voxels)")
+        ->capture_default_str();
+    cmd->add_option("-c,--config", opt->config_path,
+                    "YAML configuration of ShineVDB (see examples/config.yaml); its leaf size is "
+                    "replaced by each resolution, its preprocessing is used for both methods");
+    cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)");
+    cmd->add_option("--iterations", opt->iterations, "ShineVDB optimisation steps per run");
+    cmd->add_option("--seed", opt->seed, "Random seed of ShineVDB");
+    cmd->add_flag("--half-features", opt->half_features,
+                  "Store ShineVDB's features as float16 (map.feature_precision: float16)");
+    cmd->add_option("--first-frame", opt->first_frame, "First scan index")->capture_default_str();
+    cmd->add_option("--last-frame", opt->last_frame, "Last scan index, -1 = all")
+        ->capture_default_str();
+    cmd->add_option("--frame-step", opt->frame_step, "Use every n-th scan")->capture_default_str();
+    cmd->add_option("--poses", opt->poses_path, "Pose file (default: found in DATA)");
+    cmd->add_option("--ref", opt->ref_path,
+                    "Reference mesh to evaluate against (default: DATA/gt_mesh.ply if present)");
+    cmd->add_flag("--no-eval", opt->no_eval, "Skip the evaluation");
+    cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
+    cmd->callback([opt, &action] { action = [opt] { return run_bench(*opt); }; });
+});
+
+}  // namespace
+}  // namespace shine::cli

@@ -1,0 +1,51 @@
+// One result of the memory/accuracy study (`shine bench`): one method at one resolution.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+
+namespace shine {
+
+/// The two methods the study compares.
+enum class BenchMethod {
+    kShineVdb,  ///< the neural map (leaf size = resolution)
+    kTsdf,      ///< TSDF fusion with VDBFusion's algorithm (voxel size = resolution)
+};
+
+/// "shinevdb" or "tsdf": the name used in file names, the CSV and the JSON.
+std::string method_name(BenchMethod method);
+/// "ShineVDB" or "TSDF": the name used in tables and plots.
+std::string method_label(BenchMethod method);
+/// Inverse of method_name(); throws DataError naming `name` for anything else.
+BenchMethod parse_method_name(const std::string& name);
+
+/// The resolution as used in directory names and tables: shortest round-trip form with at least
+/// one decimal ("0.1", "0.25", "1.0").
+std::string format_size_m(double size_m);
+
+/// Mesh quality against the reference (EvalConfig's protocol): metres and ratios in [0, 1].
+struct BenchMetrics {
+    double accuracy_m = 0.0;
+    double completion_m = 0.0;
+    double chamfer_l1_m = 0.0;
+    double completion_ratio = 0.0;
+    double precision = 0.0;
+    double fscore = 0.0;
+};
+
+/// Memory, time and accuracy of one method at one resolution.
+struct BenchRow {
+    BenchMethod method = BenchMethod::kShineVdb;
+    double size_m = 0.0;         ///< leaf size (ShineVDB) or voxel size (TSDF)
+    std::size_t frames = 0;      ///< scans mapped
+    std::size_t iterations = 0;  ///< ShineVDB optimisation steps run (0 for TSDF)
+    std::size_t map_bytes = 0;   ///< ShineVDB: features + OpenVDB structure + decoder
+                                 ///< (NeuralSdf::memory_bytes); TSDF: memUsage() of TSDF + weight
+    std::size_t file_bytes = 0;  ///< map.vdb or tsdf.vdb on disk
+    double seconds = 0.0;  ///< scans in memory -> mesh on disk (reading scans and eval excluded)
+    double seconds_per_frame = 0.0;       ///< per-frame mapping time, as in the stats.json files
+    std::optional<BenchMetrics> metrics;  ///< empty when there is no reference mesh
+};
+
+}  // namespace shine

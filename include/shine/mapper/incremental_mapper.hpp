@@ -1,0 +1,96 @@
+// Incremental mapping without forgetting (paper Sec. III, "Incremental Mapping Without
+// Forgetting"): scans arrive one by one and only the current scan is used for training.
+//
+// Per scan (add_scan):
+//   1. preprocess it and move it into the map frame (the first scan fixes the map origin);
+//   2. grow the octree around its points (new rows: Omega = 0);
+//   3. estimate its endpoint normals among its own and the last few scans' endpoints;
+//   4. run incremental.iterations_per_frame steps on rays drawn from this scan only (surface
+//      band incremental.surface_band_m, learning rate decaying over the scan's steps), the loss
+//      adding lambda_r * sum Omega_i |theta_i - theta*_i|^2 over the rows used (Eq. (5));
+//   5. with lambda_r > 0: one pass over the scan's samples (each ray once) adds
+//      (1/N) sum_k |dL_bce/dtheta_i| to Omega_i (capped at Omega_m, Eq. (4); N = the pass's
+//      sample count, see importance_weights.hpp), and the anchors theta* move to the features.
+// The decoder is pretrained and frozen (models/decoder_pretrained.yaml by default); Adam's state
+// and the importance weights persist across scans. Deterministic for a seed, whatever the
+// thread count.
+#pragma once
+
+#include <deque>
+#include <memory>
+#include <vector>
+
+#include "shine/io/scan_sequence.hpp"
+#include "shine/mapper/batch_mapper.hpp"
+#include "shine/mapper/mapper_config.hpp"
+#include "shine/model/decoder.hpp"
+#include "shine/model/neural_sdf.hpp"
+#include "shine/optim/importance_weights.hpp"
+
+namespace shine {
+
+class Trainer;
+
+/// What one add_scan() did and how long each step took (wall-clock seconds).
+struct IncrementalFrameStats {
+    std::size_t rays = 0;         ///< points of the scan after preprocessing
+    std::size_t new_corners = 0;  ///< feature rows the scan added
+    std::size_t rays_with_normal = 0;
+    double preprocess_seconds = 0.0;
+    double allocate_seconds = 0.0;
+    double normals_seconds = 0.0;
+    double train_seconds = 0.0;
+    double importance_seconds = 0.0;
+    double total_seconds = 0.0;
+    double bce = 0.0;             ///< last iteration's mean BCE
+    double regularization = 0.0;  ///< last iteration's lambda_r * L_r
+};
+
+/// The decoder incremental mode uses for `config`: config.incremental.decoder_weights resolved
+/// ("builtin", a file, or "none" for the random initial decoder). Throws ConfigError if the
+/// weights' shape differs from config.decoder (naming both shapes and the fix) and IoError for an
+/// unreadable file.
+Decoder load_incremental_decoder(const MapperConfig& config);
+
+class IncrementalMapper {
+  public:
+    /// Loads the decoder (load_incremental_decoder) and freezes it unless decoder_weights is
+    /// "none". Throws what that throws and ConfigError for invalid settings.
+    explicit IncrementalMapper(const MapperConfig& config);
+    ~IncrementalMapper();
+
+    /// Integrates one scan (steps 1-5 of the file comment). Throws DataError naming the scan's
+    /// source for invalid points (per preprocess config).
+    const IncrementalFrameStats& add_scan(const Scan& scan);
+
+    const NeuralSdf& sdf() const { return *sdf_; }
+    NeuralSdf& sdf() { return *sdf_; }
+    const MapperConfig& config() const { return config_; }
+    /// Totals in the batch mapper's form (for stats.json).
+    const MappingStats& stats() const { return stats_; }
+    const std::vector<IncrementalFrameStats>& frames() const { return frames_; }
+    const ImportanceWeights& importance() const { return importance_; }
+    /// Median of the frames' total_seconds (0 before the first frame).
+    double median_frame_seconds() const;
+    /// Bytes of the state beyond the map: importance weights, anchors, Adam moments.
+    std::size_t state_bytes() const;
+
+  private:
+    struct WindowScan {
+        Eigen::Vector3f origin_map;
+        std::vector<Eigen::Vector3f> points_map;
+    };
+
+    MapperConfig config_;
+    std::unique_ptr<NeuralSdf> sdf_;
+    std::unique_ptr<Trainer> trainer_;
+    ImportanceWeights importance_;
+    std::deque<WindowScan> window_;  ///< the current scan last
+    std::vector<float> gradient_norm_sums_;
+    std::vector<IncrementalFrameStats> frames_;
+    MappingStats stats_;
+    std::uint64_t iteration_ = 0;
+    bool origin_set_ = false;
+};
+
+}  // namespace shine

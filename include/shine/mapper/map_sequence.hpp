@@ -1,0 +1,62 @@
+// Batch mapping of a scan sequence and its products -- the steps `shine map` and `shine bench`
+// share: scans -> BatchMapper (with progress) -> training -> map.vdb -> surface.vdb (baked level
+// set) -> mesh.ply, with the seconds each step took.
+//
+//   map_sequence()               = add every scan + train_with_progress() + write_map_products()
+//   train_with_progress()        the training loop behind a Progress line
+//   write_map_products()         save map.vdb, bake and save surface.vdb, mesh and save mesh.ply
+//
+// Callers that feed the scans themselves (the benchmark passes each scan to the TSDF baseline
+// too) use the last two directly. Evaluation is left to the caller (module eval).
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "shine/bake/level_set_bake.hpp"
+#include "shine/geometry/triangle_mesh.hpp"
+#include "shine/io/scan_sequence.hpp"
+#include "shine/mapper/batch_mapper.hpp"
+#include "shine/mapper/mapper_config.hpp"
+#include "shine/model/neural_sdf.hpp"
+
+namespace shine {
+
+/// What write_map_products() made, and the wall-clock seconds of each step.
+struct MapProducts {
+    BakeStats bake;
+    std::size_t surface_mem_bytes = 0;  ///< memUsage() of the baked level set
+    TriangleMesh mesh;                  ///< the zero level set, world frame
+    double save_seconds = 0.0;          ///< writing map.vdb
+    double bake_seconds = 0.0;          ///< baking and writing surface.vdb
+    double mesh_seconds = 0.0;          ///< meshing and writing mesh.ply
+};
+
+/// A mapped sequence: the mapper (which owns the NeuralSdf, its rays and MappingStats) and the
+/// products written to disk.
+struct SequenceMap {
+    std::unique_ptr<BatchMapper> mapper;
+    MapProducts products;
+};
+
+/// Trains `mapper` behind a Progress line labelled `label` with the running BCE; `iterations` is
+/// the step count the mapper will run (its config's batch_iterations()), for the progress bar.
+void train_with_progress(BatchMapper& mapper, int iterations, const std::string& label = "train");
+
+/// Writes the products of a trained map into `out_dir` (which must exist): `map.vdb` (the neural
+/// map with `config` as YAML), `surface.vdb` (baked with config.bake) and `mesh.ply` (meshed with
+/// config.mesh). Every file is written atomically. Throws IoError naming the file on failure.
+MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
+                               const std::filesystem::path& out_dir);
+
+/// Maps every scan of `sequence` in batch mode with `config` (finalized here) and writes the
+/// products into `out_dir` (created if missing). Progress lines are labelled "load" and "train",
+/// followed by `progress_tag` when it is not empty. Throws what the steps throw (IoError,
+/// DataError naming the scan, ConfigError).
+SequenceMap map_sequence(const MapperConfig& config, const ScanSequence& sequence,
+                         const std::filesystem::path& out_dir,
+                         const std::string& progress_tag = {});
+
+}  // namespace shine

@@ -1,0 +1,203 @@
+#include "shine/bench/bench_runner.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+#include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
+#include "shine/core/progress.hpp"
+#include "shine/io/ply.hpp"
+#include "shine/map/map_file.hpp"
+#include "shine/mapper/batch_mapper.hpp"
+#include "shine/mapper/map_sequence.hpp"
+#include "shine/tsdf/tsdf_file.hpp"
+
+namespace shine {
+namespace fs = std::filesystem;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::string trim(const std::string& s) {
+    const auto begin = s.find_first_not_of(" \t");
+    if (begin == std::string::npos) return {};
+    return s.substr(begin, s.find_last_not_of(" \t") - begin + 1);
+}
+
+}  // namespace
+
+std::vector<double> parse_sizes_m(const std::string& text) {
+    const std::string where = "--sizes-m '" + text + "'";
+    if (trim(text).empty()) {
+        throw ConfigError(where +
+                          ": the list is empty; give sizes in metres, e.g. 0.1,0.2,0.5,1.0");
+    }
+    std::vector<double> sizes;
+    std::istringstream in(text + ",");  // the sentinel makes a trailing comma an empty entry
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        const std::string value = trim(item);
+        if (value.empty()) {
+            throw ConfigError(where + ": empty entry; separate sizes by single commas");
+        }
+        double size = 0.0;
+        const auto result = std::from_chars(value.data(), value.data() + value.size(), size);
+        if (result.ec != std::errc() || result.ptr != value.data() + value.size()) {
+            throw ConfigError(where + ": '" + value + "' is not a number");
+        }
+        if (!std::isfinite(size) || !(size > 0.0)) {
+            throw ConfigError(where + ": " + value + " is not a positive size in metres");
+        }
+        if (std::find(sizes.begin(), sizes.end(), size) != sizes.end()) {
+            throw ConfigError(where + ": " + value + " is given twice");
+        }
+        sizes.push_back(size);
+    }
+    std::sort(sizes.begin(), sizes.end());
+    return sizes;
+}
+
+MapperConfig shine_config_at(const BenchConfig& config, double size_m) {
+    MapperConfig c = config.shine;
+    c.octree.leaf_size_m = size_m;
+    c.finalize();
+    return c;
+}
+
+TsdfMapperConfig tsdf_config_at(const BenchConfig& config, double size_m) {
+    TsdfMapperConfig c = config.tsdf;
+    c.preprocess = config.shine.preprocess;
+    c.tsdf.voxel_size_m = size_m;
+    c.tsdf.trunc_m = config.trunc_voxels * size_m;
+    c.validate();
+    return c;
+}
+
+fs::path bench_run_dir(const fs::path& out_dir, BenchMethod method, double size_m) {
+    return out_dir / (method_name(method) + "_" + format_size_m(size_m));
+}
+
+BenchMetrics to_bench_metrics(const MeshMetrics& m) {
+    return {m.accuracy_m,       m.completion_m, m.chamfer_l1_m,
+            m.completion_ratio, m.precision,    m.fscore};
+}
+
+BenchScans::BenchScans(ScanSequence sequence, std::size_t cache_budget_bytes)
+    : sequence_(std::move(sequence)) {
+    std::size_t file_bytes = 0;
+    for (std::size_t i = 0; i < sequence_.size(); ++i) {
+        std::error_code ec;
+        const auto bytes = fs::file_size(sequence_.scan_path(i), ec);
+        if (!ec) file_bytes += static_cast<std::size_t>(bytes);
+    }
+    if (file_bytes > cache_budget_bytes) return;
+    cache_.reserve(sequence_.size());
+    Progress progress("read", sequence_.size());
+    for (std::size_t i = 0; i < sequence_.size(); ++i) {
+        cache_.push_back(sequence_.load(i));
+        progress.update(i + 1);
+    }
+    progress.finish(std::to_string(sequence_.size()) + " scans in memory");
+}
+
+const Scan& BenchScans::scan(std::size_t i, Scan& storage) const {
+    if (!cache_.empty()) return cache_.at(i);
+    storage = sequence_.load(i);
+    return storage;
+}
+
+std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
+                                     const BenchScans& scans, const TriangleMesh* reference,
+                                     const fs::path& out_dir) {
+    const std::string tag = format_size_m(size_m) + " m";
+    const MapperConfig shine_config = shine_config_at(config, size_m);
+    const TsdfMapperConfig tsdf_config = tsdf_config_at(config, size_m);
+
+    BenchRow shine_row;
+    shine_row.method = BenchMethod::kShineVdb;
+    shine_row.size_m = size_m;
+    BenchRow tsdf_row;
+    tsdf_row.method = BenchMethod::kTsdf;
+    tsdf_row.size_m = size_m;
+
+    // Both mappers get each scan before the next one is read; their own stats time them apart.
+    BatchMapper shine(shine_config);
+    auto tsdf = std::make_unique<TsdfMapper>(tsdf_config);
+    {
+        Progress progress("load " + tag, scans.size());
+        Scan storage;
+        for (std::size_t i = 0; i < scans.size(); ++i) {
+            const Scan& scan = scans.scan(i, storage);
+            shine.add_scan(scan);
+            tsdf->add_scan(scan);
+            progress.update(i + 1);
+        }
+        progress.finish(std::to_string(shine.sdf().octree.num_corners()) + " corners, " +
+                        std::to_string(tsdf->volume().active_voxels()) + " voxels");
+    }
+
+    // The TSDF is finished first, so its grids are freed before ShineVDB trains.
+    {
+        Progress progress("tsdf " + tag, 3);
+        progress.update(0, "mesh");
+        auto t0 = std::chrono::steady_clock::now();
+        const TriangleMesh mesh = tsdf->extract_mesh();
+        const double mesh_seconds = seconds_since(t0);
+        progress.update(1, "save");
+        const fs::path dir = bench_run_dir(out_dir, BenchMethod::kTsdf, size_m);
+        ensure_directory(dir);
+        t0 = std::chrono::steady_clock::now();
+        write_tsdf_volume(dir / "tsdf.vdb", tsdf->volume());
+        write_ply_mesh(dir / "mesh.ply", mesh);
+        const double save_seconds = seconds_since(t0);
+
+        const TsdfMappingStats& stats = tsdf->stats();
+        const double mapping_seconds = stats.preprocess_seconds + stats.integrate_seconds;
+        tsdf_row.frames = stats.frames;
+        tsdf_row.map_bytes = tsdf->volume().memory_bytes();
+        tsdf_row.file_bytes = file_bytes(dir / "tsdf.vdb");
+        tsdf_row.seconds = mapping_seconds + mesh_seconds + save_seconds;
+        tsdf_row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
+        tsdf.reset();
+        if (reference) {
+            progress.update(2, "eval");
+            tsdf_row.metrics = to_bench_metrics(evaluate_meshes(mesh, *reference, config.eval));
+        }
+        progress.finish(std::to_string(mesh.triangles.size()) + " triangles");
+    }
+
+    train_with_progress(shine, shine_config.batch_iterations(), "train " + tag);
+    {
+        Progress progress("shine " + tag, 2);
+        progress.update(0, "save, bake, mesh");
+        const fs::path dir = bench_run_dir(out_dir, BenchMethod::kShineVdb, size_m);
+        ensure_directory(dir);
+        const MapProducts products = write_map_products(shine.sdf(), shine_config, dir);
+        const MappingStats& stats = shine.stats();
+        const double mapping_seconds = stats.load_seconds + stats.allocate_seconds +
+                                       stats.normals_seconds + stats.train_seconds;
+        shine_row.frames = stats.frames;
+        shine_row.iterations = stats.iterations;
+        shine_row.map_bytes = shine.sdf().memory_bytes();
+        shine_row.file_bytes = file_bytes(dir / "map.vdb");
+        shine_row.seconds =
+            mapping_seconds + products.save_seconds + products.bake_seconds + products.mesh_seconds;
+        shine_row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
+        if (reference) {
+            progress.update(1, "eval");
+            shine_row.metrics =
+                to_bench_metrics(evaluate_meshes(products.mesh, *reference, config.eval));
+        }
+        progress.finish(std::to_string(products.mesh.triangles.size()) + " triangles");
+    }
+    return {shine_row, tsdf_row};
+}
+
+}  // namespace shine

@@ -1,0 +1,84 @@
+#include "shine/optim/importance_weights.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "shine/core/error.hpp"
+
+namespace shine {
+
+ImportanceWeights::ImportanceWeights(const ImportanceConfig& config, int row_dim)
+    : config_(config), row_dim_(row_dim) {
+    if (!(config.regularization_weight >= 0.0f) || !std::isfinite(config.regularization_weight)) {
+        throw ConfigError("incremental.regularization_weight must be a finite number >= 0, got " +
+                          std::to_string(config.regularization_weight));
+    }
+    if (!(config.importance_cap > 0.0f)) {
+        throw ConfigError("incremental.importance_cap must be positive, got " +
+                          std::to_string(config.importance_cap));
+    }
+    if (row_dim < 1) throw ConfigError("importance weights need a row length of at least 1");
+}
+
+void ImportanceWeights::resize(std::size_t num_rows) {
+    importance_.resize(num_rows, 0.0f);
+    anchors_.resize(num_rows * row_dim_, 0.0f);
+}
+
+double ImportanceWeights::value(const float* params, const std::vector<std::int32_t>& rows) const {
+    double sum = 0.0;
+    for (const std::int32_t row : rows) {
+        const float omega = importance_[row];
+        if (omega == 0.0f) continue;
+        const std::size_t base = std::size_t(row) * row_dim_;
+        double squared = 0.0;
+        for (int l = 0; l < row_dim_; ++l) {
+            const double d = double(params[base + l]) - double(anchors_[base + l]);
+            squared += d * d;
+        }
+        sum += omega * squared;
+    }
+    return config_.regularization_weight * sum;
+}
+
+double ImportanceWeights::add_gradient(const float* params, float* grads,
+                                       const std::vector<std::int32_t>& rows) const {
+    const float lambda = config_.regularization_weight;
+    double sum = 0.0;
+    for (const std::int32_t row : rows) {
+        const float omega = importance_[row];
+        if (omega == 0.0f) continue;
+        const std::size_t base = std::size_t(row) * row_dim_;
+        const float scale = 2.0f * lambda * omega;
+        double squared = 0.0;
+        for (int l = 0; l < row_dim_; ++l) {
+            const float d = params[base + l] - anchors_[base + l];
+            grads[base + l] += scale * d;
+            squared += double(d) * d;
+        }
+        sum += omega * squared;
+    }
+    return lambda * sum;
+}
+
+void ImportanceWeights::update_importance(const std::vector<float>& gradient_norm_sums) {
+    if (gradient_norm_sums.size() > importance_.size()) {
+        throw DataError("importance update: " + std::to_string(gradient_norm_sums.size()) +
+                        " sums for " + std::to_string(importance_.size()) + " rows");
+    }
+    for (std::size_t i = 0; i < gradient_norm_sums.size(); ++i) {
+        const float s = gradient_norm_sums[i];
+        if (!(s >= 0.0f) || !std::isfinite(s)) {
+            throw DataError("importance update: gradient norm sum of row " + std::to_string(i) +
+                            " is " + std::to_string(s) + " (must be finite and >= 0)");
+        }
+        importance_[i] = std::min(importance_[i] + s, config_.importance_cap);
+    }
+}
+
+void ImportanceWeights::set_anchors(const float* params) {
+    std::copy(params, params + anchors_.size(), anchors_.begin());
+}
+
+}  // namespace shine

@@ -1,0 +1,201 @@
+#include "shine/mapper/incremental_mapper.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "shine/core/error.hpp"
+#include "shine/io/preprocess.hpp"
+#include "shine/mapper/trainer.hpp"
+#include "shine/model/decoder_file.hpp"
+#include "shine/sampling/ray_set.hpp"
+#include "shine/sampling/surface_normals.hpp"
+
+namespace shine {
+namespace {
+double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::string shape_string(int input_dim, const std::vector<int>& hidden) {
+    std::string s = std::to_string(input_dim);
+    for (int h : hidden) s += " -> " + std::to_string(h);
+    return s + " -> 1";
+}
+}  // namespace
+
+Decoder load_incremental_decoder(const MapperConfig& config_in) {
+    MapperConfig config = config_in;
+    config.finalize();
+    const std::string& source = config.incremental.decoder_weights;
+    if (source == "none") return Decoder(config.decoder);
+    Decoder decoder;
+    if (source == "builtin") {
+        const std::string text = builtin_decoder_yaml();
+        if (text.empty()) {
+            throw ConfigError(
+                "incremental.decoder_weights is 'builtin', but this build has no pretrained "
+                "decoder (models/decoder_pretrained.yaml was missing when it was built); run "
+                "`shine pretrain -o models/decoder_pretrained.yaml` and rebuild, or set "
+                "incremental.decoder_weights to a decoder file");
+        }
+        decoder = decoder_from_yaml(text, "the built-in pretrained decoder");
+    } else {
+        decoder = load_decoder(source);
+    }
+    if (decoder.config().input_dim != config.decoder.input_dim ||
+        decoder.config().hidden_dims != config.decoder.hidden_dims) {
+        throw ConfigError(
+            "incremental.decoder_weights '" + source + "' is a " +
+            shape_string(decoder.config().input_dim, decoder.config().hidden_dims) +
+            " decoder, but the configuration asks for " +
+            shape_string(config.decoder.input_dim, config.decoder.hidden_dims) +
+            " (map.feature_dim, decoder.hidden_dims); pretrain a decoder of that shape with "
+            "`shine pretrain -c CONFIG -o FILE` or set incremental.decoder_weights: none");
+    }
+    return decoder;
+}
+
+IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(config) {
+    config_.finalize();
+    const IncrementalConfig& inc = config_.incremental;
+    if (inc.iterations_per_frame < 1) {
+        throw ConfigError("incremental.iterations_per_frame must be at least 1");
+    }
+    if (inc.normal_window_frames < 1) {
+        throw ConfigError("incremental.normal_window_frames must be at least 1");
+    }
+    sdf_ = std::make_unique<NeuralSdf>(config_.octree, config_.decoder);
+    sdf_->decoder = load_incremental_decoder(config_);
+    // The paper keeps a pretrained decoder fixed in incremental mode: a decoder that moved with
+    // every scan would change the SDF of every earlier region at once.
+    if (inc.decoder_weights != "none") config_.trainer.train_decoder = false;
+    config_.sampling.surface_band_m = inc.surface_band_m;
+    trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
+    importance_ = ImportanceWeights(inc.importance, config_.octree.feature_dim);
+}
+
+IncrementalMapper::~IncrementalMapper() = default;
+
+const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
+    const auto frame_start = std::chrono::steady_clock::now();
+    IncrementalFrameStats frame;
+
+    // 1. Preprocess into the map frame (as BatchMapper::add_scan).
+    auto start = std::chrono::steady_clock::now();
+    PreprocessStats pre;
+    const std::vector<Eigen::Vector3f> points_sensor =
+        preprocess_scan(scan.points_sensor, config_.preprocess, scan.source, &pre);
+    stats_.preprocess += pre;
+    if (!origin_set_) {
+        const Eigen::Vector3d t = scan.T_world_sensor.translation();
+        sdf_->origin_world_m = (t / 1000.0).array().round().matrix() * 1000.0;
+        origin_set_ = true;
+    }
+    Eigen::Isometry3d T_map_sensor = scan.T_world_sensor;
+    T_map_sensor.translation() -= sdf_->origin_world_m;
+    WindowScan current;
+    current.origin_map = T_map_sensor.translation().cast<float>();
+    current.points_map.reserve(points_sensor.size());
+    for (const auto& p : points_sensor) {
+        current.points_map.push_back((T_map_sensor * p.cast<double>()).cast<float>());
+    }
+    frame.rays = current.points_map.size();
+    frame.preprocess_seconds = seconds_since(start);
+
+    // 2. Grow the map.
+    start = std::chrono::steady_clock::now();
+    frame.new_corners = sdf_->octree.allocate_cells(current.points_map);
+    trainer_->on_map_grown();
+    importance_.resize(sdf_->octree.num_corners());
+    frame.allocate_seconds = seconds_since(start);
+
+    window_.push_back(std::move(current));
+    while (window_.size() > static_cast<std::size_t>(config_.incremental.normal_window_frames)) {
+        window_.pop_front();
+    }
+    RaySet rays;
+    for (const WindowScan& s : window_) rays.add_scan(s.origin_map, s.points_map);
+    const std::size_t ray_begin = rays.first_ray(static_cast<std::uint32_t>(window_.size() - 1));
+    const std::size_t ray_end = rays.num_rays();
+
+    // 3. Normals of the current scan, among the window's endpoints.
+    start = std::chrono::steady_clock::now();
+    if (config_.normals.enabled && ray_end > ray_begin) {
+        std::vector<Eigen::Vector3f> normals =
+            estimate_ray_normals(rays, config_.normals, ray_begin, ray_end);
+        for (std::size_t r = ray_begin; r < ray_end; ++r) {
+            frame.rays_with_normal += normals[r].squaredNorm() > 0.5f;
+        }
+        rays.set_normals(std::move(normals));
+    }
+    frame.normals_seconds = seconds_since(start);
+
+    // 4. Train on the current scan only.
+    start = std::chrono::steady_clock::now();
+    const ImportanceWeights* regularizer = importance_.enabled() ? &importance_ : nullptr;
+    if (ray_end > ray_begin) {
+        TrainStepStats last;
+        const int iterations = config_.incremental.iterations_per_frame;
+        const float lr0 = config_.trainer.feature_adam.learning_rate;
+        // Each scan's training ends with small steps (cosine decay to final_learning_rate_ratio,
+        // as batch mode over its whole run), so that the anchors theta* are converged values.
+        const double final_ratio = config_.final_learning_rate_ratio;
+        for (int it = 0; it < iterations; ++it) {
+            const double progress =
+                iterations > 1 ? static_cast<double>(it) / (iterations - 1) : 1.0;
+            const double ratio =
+                final_ratio + (1.0 - final_ratio) * 0.5 * (1.0 + std::cos(M_PI * progress));
+            trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
+            last = trainer_->step(rays, ray_begin, ray_end, iteration_++, regularizer);
+        }
+        frame.bce = last.bce;
+        frame.regularization = last.regularization;
+        stats_.final_bce = last.bce;
+        stats_.final_eikonal = last.eikonal;
+        stats_.iterations += static_cast<std::size_t>(config_.incremental.iterations_per_frame);
+    }
+    frame.train_seconds = seconds_since(start);
+
+    // 5. Importance of this scan's data (Eq. (4)) and the new anchors.
+    start = std::chrono::steady_clock::now();
+    if (regularizer && ray_end > ray_begin) {
+        std::fill(gradient_norm_sums_.begin(), gradient_norm_sums_.end(), 0.0f);
+        const std::size_t samples = trainer_->accumulate_bce_gradient_norms(
+            rays, ray_begin, ray_end, frames_.size(), gradient_norm_sums_);
+        // The paper's sum over the scan's samples, divided by their number N: with the mean BCE
+        // of a batch as the data loss, lambda_r * Omega is then on the scale of the data
+        // gradient whatever the scan's point count (see docs/incremental.md).
+        if (samples > 0) {
+            const float inv_n = 1.0f / static_cast<float>(samples);
+            for (float& s : gradient_norm_sums_) s *= inv_n;
+        }
+        importance_.update_importance(gradient_norm_sums_);
+        importance_.set_anchors(trainer_->feature_params());
+    }
+    frame.importance_seconds = seconds_since(start);
+    frame.total_seconds = seconds_since(frame_start);
+    stats_.load_seconds += frame.preprocess_seconds;
+    stats_.allocate_seconds += frame.allocate_seconds;
+    stats_.normals_seconds += frame.normals_seconds;
+    stats_.train_seconds += frame.train_seconds + frame.importance_seconds;
+    ++stats_.frames;
+    stats_.rays += frame.rays;
+    frames_.push_back(frame);
+    return frames_.back();
+}
+
+double IncrementalMapper::median_frame_seconds() const {
+    if (frames_.empty()) return 0.0;
+    std::vector<double> seconds;
+    for (const auto& f : frames_) seconds.push_back(f.total_seconds);
+    std::sort(seconds.begin(), seconds.end());
+    const std::size_t n = seconds.size();
+    return n % 2 ? seconds[n / 2] : 0.5 * (seconds[n / 2 - 1] + seconds[n / 2]);
+}
+
+std::size_t IncrementalMapper::state_bytes() const {
+    return importance_.memory_bytes() + trainer_->optimizer_bytes();
+}
+
+}  // namespace shine

@@ -1,0 +1,318 @@
+// Incremental mapping without forgetting, the parts: the regulariser
+// lambda_r sum Omega_i |theta_i - theta*_i|^2 and the importance update
+// Omega_i = min(Omega_i + sum_k |dL_bce/dtheta_i|, Omega_m) (paper Eqs. (3)-(5)) checked by finite
+// differences, the trainer's hook, the decoder file, and the mapper's determinism. The forgetting
+// scene is in test_neural_incremental_forgetting.cpp.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <random>
+
+#include "shine/core/error.hpp"
+#include "shine/mapper/incremental_mapper.hpp"
+#include "shine/mapper/trainer.hpp"
+#include "shine/model/decoder_file.hpp"
+#include "shine/model/sample_gradient.hpp"
+#include "shine/optim/importance_weights.hpp"
+#include "shine/sampling/ray_sampler.hpp"
+#include "shine/sampling/ray_set.hpp"
+
+using namespace shine;
+
+namespace {
+// Central differences of float32 kernels whose values are O(1) (as test_neural_gradients.cpp).
+constexpr double kStep = 1e-3;
+constexpr double kRelTol = 2e-2;
+constexpr double kAbsTol = 2e-4;
+
+void expect_close(double analytic, double numeric, const std::string& what) {
+    EXPECT_NEAR(analytic, numeric, kAbsTol + kRelTol * std::abs(numeric)) << what;
+}
+
+std::vector<float> random_table(std::size_t n, float stddev, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> normal(0.0f, stddev);
+    std::vector<float> v(n);
+    for (float& x : v) x = normal(rng);
+    return v;
+}
+}  // namespace
+
+TEST(ImportanceWeights, RegularizerGradientMatchesFiniteDifferences) {
+    const int dim = 8;
+    const std::size_t num_rows = 6;
+    ImportanceWeights weights(ImportanceConfig{2.5f, 100.0f}, dim);
+    weights.resize(num_rows);
+    std::vector<float> params = random_table(num_rows * dim, 0.3f, 1);
+    weights.set_anchors(params.data());
+    // Omega: row 1 stays 0 (unconstrained), the others differ; then the parameters move away.
+    weights.update_importance({0.7f, 0.0f, 3.0f, 1.5f, 9.0f, 0.2f});
+    const std::vector<float> drift = random_table(num_rows * dim, 0.2f, 2);
+    for (std::size_t i = 0; i < params.size(); ++i) params[i] += drift[i];
+
+    // The set A of Eq. (3): rows 0, 1, 2, 3, 5 are used this iteration, row 4 is not.
+    const std::vector<std::int32_t> used = {0, 1, 2, 3, 5};
+    std::vector<float> grads(params.size(), 0.0f);
+    const double value = weights.add_gradient(params.data(), grads.data(), used);
+    EXPECT_NEAR(value, weights.value(params.data(), used), 1e-6 * value);
+    EXPECT_GT(value, 0.1);
+
+    int nonzero = 0;
+    for (std::size_t i = 0; i < params.size(); ++i) {
+        const float saved = params[i];
+        params[i] = saved + static_cast<float>(kStep);
+        const double vp = weights.value(params.data(), used);
+        params[i] = saved - static_cast<float>(kStep);
+        const double vm = weights.value(params.data(), used);
+        params[i] = saved;
+        const double numeric = (vp - vm) / (2.0 * kStep);
+        expect_close(grads[i], numeric, "parameter " + std::to_string(i));
+        nonzero += std::abs(numeric) > 1e-3;
+    }
+    EXPECT_GT(nonzero, 25) << "the check must exercise real gradients";
+    for (int l = 0; l < dim; ++l) {
+        EXPECT_EQ(grads[4 * dim + l], 0.0f) << "row 4 was not used";
+        EXPECT_EQ(grads[1 * dim + l], 0.0f) << "row 1 has no importance";
+    }
+}
+
+TEST(ImportanceWeights, UpdateAccumulatesAndCapsAtOmegaMax) {
+    ImportanceWeights weights(ImportanceConfig{1.0f, 10.0f}, 2);
+    weights.resize(3);
+    weights.update_importance({4.0f, 0.0f, 12.0f});
+    EXPECT_EQ(weights.importance(0), 4.0f);
+    EXPECT_EQ(weights.importance(1), 0.0f);
+    EXPECT_EQ(weights.importance(2), 10.0f);  // capped at Omega_m
+    weights.update_importance({5.0f, 1.0f});  // rows beyond the sums stay as they are
+    EXPECT_EQ(weights.importance(0), 9.0f);
+    EXPECT_EQ(weights.importance(1), 1.0f);
+    EXPECT_EQ(weights.importance(2), 10.0f);
+    weights.update_importance({5.0f});
+    EXPECT_EQ(weights.importance(0), 10.0f);
+    weights.resize(5);  // new rows start unconstrained
+    EXPECT_EQ(weights.importance(4), 0.0f);
+    EXPECT_THROW(weights.update_importance({-1.0f}), DataError);
+    EXPECT_THROW(weights.update_importance({NAN}), DataError);
+    EXPECT_THROW(weights.update_importance(std::vector<float>(6, 0.0f)), DataError);
+    EXPECT_THROW(ImportanceWeights(ImportanceConfig{-1.0f, 10.0f}, 2), ConfigError);
+    EXPECT_THROW(ImportanceWeights(ImportanceConfig{1.0f, 0.0f}, 2), ConfigError);
+}
+
+namespace {
+// A two-level map over a patch of ground seen from one sensor position, large random features so
+// that the decoder works in its nonlinear range.
+struct PatchScene {
+    NeuralSdf sdf;
+    RaySet rays;
+
+    PatchScene() : sdf(octree_config(), DecoderConfig{8, {16, 16}, 11}) {
+        std::vector<Eigen::Vector3f> endpoints;
+        for (int i = 0; i < 5; ++i) {
+            for (int j = 0; j < 4; ++j) {
+                endpoints.emplace_back(1.0f + 0.37f * i, -0.6f + 0.41f * j, 0.0f);
+            }
+        }
+        std::vector<Eigen::Vector3f> allocation = endpoints;
+        for (const auto& p : endpoints) {
+            allocation.push_back(p + Eigen::Vector3f(0, 0, 0.3f));
+            allocation.push_back(p + Eigen::Vector3f(0, 0, -0.3f));
+        }
+        sdf.octree.allocate_cells(allocation);
+        rays.add_scan(Eigen::Vector3f(0.0f, 0.0f, 1.5f), endpoints);
+    }
+    static FeatureOctreeConfig octree_config() {
+        FeatureOctreeConfig c;
+        c.leaf_size_m = 0.25;
+        c.num_levels = 2;
+        c.init_std = 0.3f;
+        return c;
+    }
+};
+}  // namespace
+
+TEST(IncrementalTrainer, ImportancePassSumsFiniteDifferenceBceGradientNorms) {
+    PatchScene scene;
+    TrainerConfig trainer_config;
+    trainer_config.sigma_m = 0.1f;
+    SamplingConfig sampling;
+    Trainer trainer(scene.sdf, trainer_config, sampling);
+    const std::uint64_t pass = 7;
+    std::vector<float> sums;
+    trainer.accumulate_bce_gradient_norms(scene.rays, 0, scene.rays.num_rays(), pass, sums);
+    ASSERT_EQ(sums.size(), scene.sdf.octree.num_corners());
+
+    // Brute force over the same samples (each ray's documented stream): (1) every per-sample BCE
+    // gradient, row by row, matches central differences component by component; (2) the pass's
+    // sums are the sums of those gradients' norms.
+    const int dim = scene.sdf.octree.feature_dim();
+    const SampleLossConfig bce_only{trainer_config.sigma_m, 0.0f};
+    CellLookup lookup(scene.sdf.octree);
+    DecoderWorkspace ws;
+    scene.sdf.decoder.prepare(ws);
+    auto& features = scene.sdf.octree.features();
+    std::vector<double> expected(sums.size(), 0.0);
+    int samples_used = 0, components_checked = 0;
+    for (std::size_t ray = 0; ray < scene.rays.num_rays(); ++ray) {
+        Pcg32 rng(trainer.importance_stream_seed(pass, ray));
+        RaySample samples[16];
+        sample_ray(scene.rays.origin_of_ray(ray), scene.rays.endpoint(ray), scene.rays.normal(ray),
+                   sampling, rng, samples);
+        for (int s = 0; s < sampling.samples_per_ray(); ++s) {
+            EncodedPoint encoded;
+            SampleGradient g;
+            if (!sample_loss_gradient(scene.sdf, lookup, ws, samples[s], bce_only, encoded, g,
+                                      nullptr)) {
+                continue;
+            }
+            ++samples_used;
+            auto bce = [&]() {
+                EncodedPoint e;
+                SampleGradient gg;
+                sample_loss_gradient(scene.sdf, lookup, ws, samples[s], bce_only, e, gg, nullptr);
+                return static_cast<double>(gg.bce);
+            };
+            for (int k = 0; k < encoded.num_corners; ++k) {
+                double norm_sq = 0.0;
+                for (int l = 0; l < dim; ++l) {
+                    const double analytic = double(g.coefficients[k]) * g.h[l];
+                    norm_sq += analytic * analytic;
+                    if ((ray + k + l) % 5 != 0) continue;  // a fifth of the components suffices
+                    const std::size_t i = std::size_t(encoded.rows[k]) * dim + l;
+                    const float saved = features[i];
+                    features[i] = saved + static_cast<float>(kStep);
+                    const double lp = bce();
+                    features[i] = saved - static_cast<float>(kStep);
+                    const double lm = bce();
+                    features[i] = saved;
+                    // Float round-off of a loss of size |L| limits the difference quotient to
+                    // about ulp(L) / kStep: samples far on the wrong side have |L| ~ 10.
+                    const double numeric = (lp - lm) / (2.0 * kStep);
+                    const double noise = 4.0 * 1.2e-7 * std::abs(g.bce) / kStep;
+                    EXPECT_NEAR(analytic, numeric, kAbsTol + noise + kRelTol * std::abs(numeric))
+                        << "ray " << ray << " sample " << s << " corner " << k << " feature " << l
+                        << " loss " << g.bce;
+                    ++components_checked;
+                }
+                expected[encoded.rows[k]] += std::sqrt(norm_sq);
+            }
+        }
+    }
+    EXPECT_GT(samples_used, 60);
+    EXPECT_GT(components_checked, 1000);
+    int rows_checked = 0;
+    for (std::size_t row = 0; row < sums.size(); ++row) {
+        EXPECT_NEAR(sums[row], expected[row], 1e-6 + 1e-5 * expected[row]) << "row " << row;
+        rows_checked += expected[row] > 1e-2;
+    }
+    EXPECT_GT(rows_checked, 20);
+}
+
+TEST(IncrementalTrainer, RegularizerHookPullsTowardsAnchorsAndIsANoOpWithoutImportance) {
+    TrainerConfig trainer_config;
+    trainer_config.batch_size = 256;
+    trainer_config.train_decoder = false;
+    SamplingConfig sampling;
+    PatchScene plain, zero_importance, regularized;
+    Trainer t_plain(plain.sdf, trainer_config, sampling);
+    Trainer t_zero(zero_importance.sdf, trainer_config, sampling);
+    Trainer t_reg(regularized.sdf, trainer_config, sampling);
+    const int dim = plain.sdf.octree.feature_dim();
+    const std::size_t rows = plain.sdf.octree.num_corners();
+    const std::vector<float> initial = plain.sdf.octree.features().to_floats();
+
+    ImportanceWeights none(ImportanceConfig{1.0f, 1e4f}, dim);
+    none.resize(rows);  // Omega = 0 everywhere: L_r = 0
+    ImportanceWeights strong(ImportanceConfig{1.0f, 1e4f}, dim);
+    strong.resize(rows);
+    strong.set_anchors(initial.data());
+    strong.update_importance(std::vector<float>(rows, 100.0f));
+
+    double regularization = 0.0;
+    for (std::uint64_t it = 0; it < 20; ++it) {
+        t_plain.step(plain.rays, 0, plain.rays.num_rays(), it);
+        EXPECT_EQ(t_zero.step(zero_importance.rays, 0, zero_importance.rays.num_rays(), it, &none)
+                      .regularization,
+                  0.0);
+        regularization = t_reg.step(regularized.rays, 0, regularized.rays.num_rays(), it, &strong)
+                             .regularization;
+    }
+    EXPECT_GT(regularization, 0.0);
+    // Bit-identical to the plain (batch-mode) step when no row has importance.
+    EXPECT_EQ(plain.sdf.octree.features().to_floats(),
+              zero_importance.sdf.octree.features().to_floats());
+    // And the regulariser keeps the features closer to the anchors.
+    double drift_plain = 0.0, drift_reg = 0.0;
+    for (std::size_t i = 0; i < initial.size(); ++i) {
+        drift_plain += std::pow(plain.sdf.octree.features()[i] - initial[i], 2);
+        drift_reg += std::pow(regularized.sdf.octree.features()[i] - initial[i], 2);
+    }
+    EXPECT_GT(drift_plain, 0.0);
+    EXPECT_LT(drift_reg, 0.5 * drift_plain);
+}
+
+TEST(DecoderFile, RoundTripIsExactAndErrorsNameTheSource) {
+    const Decoder decoder(DecoderConfig{8, {16, 16}, 5});
+    const std::string text = decoder_to_yaml(decoder, "made by a test");
+    const Decoder back = decoder_from_yaml(text, "test");
+    EXPECT_EQ(back.params(), decoder.params());
+    EXPECT_EQ(back.config().hidden_dims, decoder.config().hidden_dims);
+    EXPECT_EQ(decoder_provenance(text, "test"), "made by a test");
+    try {
+        decoder_from_yaml("format: something-else\n", "weights.yaml");
+        FAIL() << "no error";
+    } catch (const IoError& e) {
+        EXPECT_NE(std::string(e.what()).find("weights.yaml"), std::string::npos) << e.what();
+    }
+    std::string truncated = text.substr(0, text.rfind(','));
+    truncated += "]\n";
+    EXPECT_THROW(decoder_from_yaml(truncated, "truncated"), IoError);
+}
+
+TEST(DecoderFile, BuiltinPretrainedDecoderMatchesTheDefaultShape) {
+    const std::string text = builtin_decoder_yaml();
+    ASSERT_FALSE(text.empty()) << "models/decoder_pretrained.yaml was not compiled in";
+    MapperConfig config;
+    const Decoder decoder = load_incremental_decoder(config);
+    EXPECT_EQ(decoder.num_params(), Decoder(DecoderConfig{}).num_params());
+    EXPECT_NE(decoder_provenance(text, "builtin").find("shine pretrain"), std::string::npos);
+    config.decoder.hidden_dims = {16};
+    EXPECT_THROW(load_incremental_decoder(config), ConfigError);
+}
+
+TEST(IncrementalMapper, SameMapForAnyThreadCount) {
+    // Two scans of a ground patch with a post, mapped with 1 and with 2 threads.
+    const auto scan_at = [](double x) {
+        Scan scan;
+        scan.T_world_sensor.translation() = Eigen::Vector3d(x, 0.0, 1.5);
+        for (int b = 0; b < 12; ++b) {
+            const double elevation = (-40.0 + 30.0 * b / 11) * M_PI / 180.0;
+            for (int a = 0; a < 360; ++a) {
+                const double azimuth = 2.0 * M_PI * a / 360;
+                const Eigen::Vector3d d(std::cos(elevation) * std::cos(azimuth),
+                                        std::cos(elevation) * std::sin(azimuth),
+                                        std::sin(elevation));
+                scan.points_sensor.push_back(((1.5 / -d.z()) * d).cast<float>());
+            }
+        }
+        return scan;
+    };
+    std::vector<std::vector<float>> features;
+    std::vector<std::vector<float>> importances;
+    for (int threads : {1, 2}) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+        MapperConfig config;
+        config.preprocess.min_range_m = 0.5;
+        config.incremental.iterations_per_frame = 10;
+        config.trainer.batch_size = 1024;
+        IncrementalMapper mapper(config);
+        mapper.add_scan(scan_at(0.0));
+        mapper.add_scan(scan_at(0.7));
+        features.push_back(mapper.sdf().octree.features().to_floats());
+        importances.push_back(mapper.importance().importances());
+        EXPECT_EQ(mapper.frames().size(), 2u);
+        EXPECT_GT(mapper.frames()[1].regularization, 0.0);
+    }
+    EXPECT_EQ(features[0], features[1]);
+    EXPECT_EQ(importances[0], importances[1]);
+}

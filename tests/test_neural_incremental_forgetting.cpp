@@ -1,0 +1,150 @@
+// Forgetting on a small two-region scene (the paper's Fig. 3 situation): region A (ground and a
+// sphere) is scanned from close by first; then the sensor drives on to region B (ground and a
+// box), from where it still sees A's ground, but only far away and at grazing angles, a few scan
+// lines per scan. Training on those scans alone retrains the rows A's well-observed surface
+// depends on: without the importance-weight regulariser A's SDF error grows; with it, it stays.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "shine/mapper/incremental_mapper.hpp"
+
+using namespace shine;
+
+namespace {
+
+const Eigen::Vector3d kSphereCentre(0.0, 2.2, 0.9);
+constexpr double kSphereRadiusM = 0.9;
+const Eigen::Vector3d kBoxMin(6.5, 1.5, 0.0), kBoxMax(8.5, 3.5, 2.0);
+
+double box_sdf(const Eigen::Vector3d& p) {
+    const Eigen::Vector3d centre = 0.5 * (kBoxMin + kBoxMax), half = 0.5 * (kBoxMax - kBoxMin);
+    const Eigen::Vector3d q = (p - centre).cwiseAbs() - half;
+    return q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
+}
+
+double scene_sdf(const Eigen::Vector3d& p) {
+    return std::min({p.z(), (p - kSphereCentre).norm() - kSphereRadiusM, box_sdf(p)});
+}
+
+// Closest hit along a unit ray, or a negative value (sphere tracing on the exact SDF).
+double cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double max_m) {
+    double t = 0.0;
+    for (int i = 0; i < 400 && t < max_m; ++i) {
+        const double s = scene_sdf(o + t * d);
+        if (s < 1e-5) return t;
+        t += s;
+    }
+    return -1.0;
+}
+
+Scan make_scan(const Eigen::Vector3d& origin, double max_range_m) {
+    constexpr int kBeams = 24, kAzimuths = 540;
+    Scan scan;
+    scan.T_world_sensor.translation() = origin;
+    for (int b = 0; b < kBeams; ++b) {
+        const double elevation = (-35.0 + 33.0 * b / (kBeams - 1)) * M_PI / 180.0;
+        for (int a = 0; a < kAzimuths; ++a) {
+            const double azimuth = 2.0 * M_PI * a / kAzimuths;
+            const Eigen::Vector3d d(std::cos(elevation) * std::cos(azimuth),
+                                    std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+            const double t = cast(origin, d, max_range_m);
+            if (t > 0.0) scan.points_sensor.push_back((t * d).cast<float>());
+        }
+    }
+    return scan;
+}
+
+// Points of region A's surfaces the first scans saw, each with offsets of -10, 0, +10 cm along
+// the surface normal (true SDF -0.1, 0, 0.1 m).
+void region_a_queries(std::vector<Eigen::Vector3f>& points, std::vector<float>& sdf_m) {
+    const auto add = [&](const Eigen::Vector3d& surface, const Eigen::Vector3d& normal) {
+        for (double offset : {-0.1, 0.0, 0.1}) {
+            points.push_back((surface + offset * normal).cast<float>());
+            sdf_m.push_back(static_cast<float>(offset));
+        }
+    };
+    // Ground beyond the sensors' blind circle (2.4 m at -35 degrees), on the side away from
+    // the sphere.
+    for (double x = -2.0; x <= 2.0; x += 0.1) {
+        for (double y = -4.5; y <= -2.8; y += 0.1) add({x, y, 0.0}, Eigen::Vector3d::UnitZ());
+    }
+    // The sphere's side facing the sensors (y < centre), above the ground.
+    for (double az = M_PI * 1.1; az <= M_PI * 1.9; az += 0.08) {
+        for (double el = -0.4; el <= 1.2; el += 0.1) {
+            const Eigen::Vector3d n(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                                    std::sin(el));
+            add(kSphereCentre + kSphereRadiusM * n, n);
+        }
+    }
+}
+
+// Measured (noise-free scans; the default incremental settings but for the scene's ranges): mean
+// |f - sdf| over region A is 1.4-1.8 cm after its scans; at the end 1.41 cm with the default
+// regulariser and 2.19 cm without it, the far, oblique views of region B's scans having retrained
+// the rows of A's ground.
+constexpr double kMaxRegularizedErrorM = 0.018;  // 1.8 cm
+
+struct RunResult {
+    double error_after_a_m = 0.0;  ///< mean |f - sdf| over region A after its scans
+    double error_end_m = 0.0;      ///< ... after all scans, at the same points
+};
+
+RunResult run(float regularization_weight) {
+    MapperConfig config;
+    config.octree.leaf_size_m = 0.25;
+    config.preprocess.min_range_m = 0.5;
+    config.preprocess.max_range_m = 10.0;
+    config.trainer.batch_size = 2048;
+    config.incremental.importance.regularization_weight = regularization_weight;
+    IncrementalMapper mapper(config);
+
+    std::vector<Eigen::Vector3f> queries;
+    std::vector<float> truth_m;
+    region_a_queries(queries, truth_m);
+    std::vector<std::uint8_t> evaluated;  // the points inside the map after region A's scans
+    const auto error = [&]() {
+        std::vector<float> sdf_m;
+        std::vector<std::uint8_t> valid;
+        mapper.sdf().query(queries, QueryMask::kLevel0, sdf_m, valid);
+        if (evaluated.empty()) evaluated = valid;
+        double sum = 0.0;
+        std::size_t n = 0;
+        for (std::size_t i = 0; i < queries.size(); ++i) {
+            if (!evaluated[i]) continue;
+            EXPECT_TRUE(valid[i]) << "the map only grows";
+            sum += std::abs(sdf_m[i] - truth_m[i]);
+            ++n;
+        }
+        EXPECT_GT(n, queries.size() * 9 / 10);
+        return sum / static_cast<double>(std::max<std::size_t>(n, 1));
+    };
+
+    RunResult result;
+    for (double x : {-1.0, -0.5, 0.0, 0.5, 1.0}) mapper.add_scan(make_scan({x, 0.0, 1.7}, 6.0));
+    result.error_after_a_m = error();
+    for (double x = 4.0; x <= 9.0; x += 0.5) mapper.add_scan(make_scan({x, 0.0, 1.7}, 10.0));
+    result.error_end_m = error();
+    return result;
+}
+
+}  // namespace
+
+TEST(IncrementalForgetting, RegularisationKeepsTheFirstRegionsSdf) {
+    const float lambda = MapperConfig{}.incremental.importance.regularization_weight;
+    ASSERT_GT(lambda, 0.0f);
+    const RunResult with = run(lambda);
+    const RunResult without = run(0.0f);
+    std::printf(
+        "region A mean SDF error: lambda_r %g: %.4f m -> %.4f m; without: %.4f m -> %.4f m\n",
+        lambda, with.error_after_a_m, with.error_end_m, without.error_after_a_m,
+        without.error_end_m);
+    EXPECT_LT(with.error_end_m, kMaxRegularizedErrorM);
+    EXPECT_GT(without.error_end_m, kMaxRegularizedErrorM);
+    // Forgetting: without the regulariser region A's error grew by 15 % or more after it was
+    // left behind (measured: by 24 %); with it, it stayed (measured: +1 %).
+    EXPECT_GT(without.error_end_m, 1.15 * without.error_after_a_m);
+    EXPECT_LT(with.error_end_m, 1.1 * with.error_after_a_m);
+}
