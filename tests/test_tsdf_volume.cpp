@@ -151,6 +151,43 @@ TEST(TsdfIntegrate, DiagonalRayVisitsExactlyTheVoxelsTheSegmentCrosses) {
     EXPECT_GT(updated.size(), 40u);
 }
 
+TEST(TsdfIntegrate, PlaneSeenHeadOnGivesItsExactSignedDistance) {
+    // A plane x = 2.02 m seen head-on by an 11 x 11 grid of rays, one through the centre of each
+    // voxel column (j, k), from a sensor 102 m away: the rays are parallel to x to within 0.3 mrad,
+    // so each column is updated by its own ray only, and the stored value must be the plane's
+    // signed distance 2.02 - x at every voxel centre of the band (the lateral drift of a ray
+    // across the band, at most 1.5 mm, changes the distance to its point by under 0.05 mm).
+    TsdfVolume volume(config());
+    const Eigen::Vector3d sensor(-100.0, 0.05, 0.05);
+    constexpr double kPlaneX = 2.02;
+    constexpr int kHalf = 5;
+    std::vector<Eigen::Vector3d> points;
+    for (int j = -kHalf; j <= kHalf; ++j) {
+        for (int k = -kHalf; k <= kHalf; ++k) {
+            points.emplace_back(kPlaneX, 0.05 + kVoxelM * j, 0.05 + kVoxelM * k);
+        }
+    }
+    volume.integrate(points, sensor);
+    // The band x in [1.72, 2.32] covers voxels 17 (centre 1.75) to 23 (centre 2.35, entered at
+    // 2.3); 23's distance -0.33 is beyond the truncation, so it is visited but not updated.
+    std::size_t checked = 0;
+    for (int j = -kHalf; j <= kHalf; ++j) {
+        for (int k = -kHalf; k <= kHalf; ++k) {
+            for (int i = 17; i <= 22; ++i) {
+                const openvdb::Coord voxel(i, j, k);
+                const double exact = kPlaneX - volume.voxel_centre_map(voxel).x();
+                EXPECT_NEAR(volume.tsdf(voxel), exact, 1e-4) << voxel;
+                EXPECT_EQ(volume.weight(voxel), 1.0f) << voxel;
+                ++checked;
+            }
+            EXPECT_EQ(volume.weight(openvdb::Coord(16, j, k)), 0.0f);
+            EXPECT_EQ(volume.weight(openvdb::Coord(23, j, k)), 0.0f);
+        }
+    }
+    EXPECT_EQ(checked, 121u * 6u);
+    EXPECT_EQ(volume.active_voxels(), 121u * 6u);
+}
+
 TEST(TsdfIntegrate, SkipsNonFinitePointsAndPointsAtTheSensor) {
     TsdfVolume volume(config());
     const double nan = std::numeric_limits<double>::quiet_NaN();
