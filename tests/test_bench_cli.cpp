@@ -8,59 +8,33 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_test_support.hpp"
 #include "shine/bench/bench_report.hpp"
 #include "shine/bench/bench_runner.hpp"
 #include "shine/map/map_file.hpp"
 
 namespace fs = std::filesystem;
+using namespace shine::cli_test;
 
 namespace {
 
-const fs::path kRoot = fs::path(SHINE_TEST_TMP_DIR) / "bench_cli";
+fs::path test_dir() { return test_dir_of("bench_cli"); }
 
-struct Result {
-    int exit_code;
-    std::string output;
-};
-
-// ctest runs each test in its own process, in parallel: every test works in its own directory.
-fs::path test_dir() {
-    const fs::path d = kRoot / ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    fs::create_directories(d);
-    return d;
-}
-
-Result run(const std::string& args) {
-    const fs::path log = test_dir() / "last_command.log";
-    const std::string command =
-        "'" + std::string(SHINE_CLI_PATH) + "' " + args + " > '" + log.string() + "' 2>&1";
-    const int status = std::system(command.c_str());
-    std::ifstream in(log);
-    std::stringstream text;
-    text << in.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
-
-std::string read_text(const fs::path& path) {
-    std::ifstream in(path);
-    std::stringstream text;
-    text << in.rdbuf();
-    return text.str();
-}
+CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
 
 }  // namespace
 
 TEST(BenchCli, TinyStreetWritesEveryOutput) {
     const fs::path street = test_dir() / "street";
     fs::remove_all(street);
-    const Result sim =
+    const CliResult sim =
         run("simulate -o '" + street.string() + "' --frames 3 --seed 3 --no-progress");
     ASSERT_EQ(sim.exit_code, 0) << sim.output;
 
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r = run("bench '" + street.string() + "' -o '" + out.string() +
-                         "' --sizes-m 0.5 --iterations 100 --threads 2 -q");
+    const CliResult r = run("bench '" + street.string() + "' -o '" + out.string() +
+                            "' --sizes-m 0.5 --iterations 100 --threads 2 -q");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     for (const char* f : {"bench.csv", "bench.json", "bench.md", "memory_vs_chamfer.png",
                           "shinevdb_0.5/map.vdb", "shinevdb_0.5/surface.vdb",
@@ -105,12 +79,12 @@ TEST(BenchCli, TinyStreetWritesEveryOutput) {
 TEST(BenchCli, HalfFeaturesReachTheMap) {
     const fs::path street = test_dir() / "street";
     fs::remove_all(street);
-    const Result sim =
+    const CliResult sim =
         run("simulate -o '" + street.string() + "' --frames 1 --seed 3 --no-progress");
     ASSERT_EQ(sim.exit_code, 0) << sim.output;
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r =
+    const CliResult r =
         run("bench '" + street.string() + "' -o '" + out.string() +
             "' --sizes-m 1.0 --iterations 20 --threads 2 --half-features --no-eval -q");
     ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -125,7 +99,7 @@ TEST(BenchCli, HalfFeaturesReachTheMap) {
 TEST(BenchCli, MissingDataDirectoryFailsWithoutOutputs) {
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r =
+    const CliResult r =
         run("bench '" + (test_dir() / "no_such_dir").string() + "' -o '" + out.string() + "' -q");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("no_such_dir"), std::string::npos) << r.output;
@@ -136,8 +110,8 @@ TEST(BenchCli, BadSizesFailBeforeAnything) {
     const fs::path out = test_dir() / "out";
     for (const char* sizes : {"''", "0.1,-0.2", "0.1,abc", "0.1,,0.2"}) {
         fs::remove_all(out);
-        const Result r = run("bench '" + (test_dir() / "no_such_dir").string() + "' -o '" +
-                             out.string() + "' -q --sizes-m " + sizes);
+        const CliResult r = run("bench '" + (test_dir() / "no_such_dir").string() + "' -o '" +
+                                out.string() + "' -q --sizes-m " + sizes);
         EXPECT_NE(r.exit_code, 0) << sizes;
         EXPECT_NE(r.output.find("--sizes-m"), std::string::npos) << sizes << "\n" << r.output;
         EXPECT_EQ(r.output.find("no_such_dir"), std::string::npos)

@@ -10,7 +10,10 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_test_support.hpp"
+
 namespace fs = std::filesystem;
+using namespace shine::cli_test;
 
 namespace {
 
@@ -19,45 +22,20 @@ namespace {
 // floating-point differences.
 constexpr double kMinFscore = 0.85;
 
-const fs::path kRoot = fs::path(SHINE_TEST_TMP_DIR) / "incremental_cli";
+fs::path test_dir() { return test_dir_of("incremental_cli"); }
 
-struct Result {
-    int exit_code;
-    std::string output;
-};
-
-fs::path test_dir() {
-    const fs::path d = kRoot / ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    fs::create_directories(d);
-    return d;
-}
-
-Result run(const std::string& args) {
-    const fs::path log = test_dir() / "last_command.log";
-    const std::string command =
-        std::string(SHINE_CLI_PATH) + " " + args + " > " + log.string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    std::ifstream in(log);
-    std::stringstream text;
-    text << in.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
+CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
 
 // A small simulated street (made once per test process; not a pretraining seed).
 const fs::path& street() {
     static const fs::path dir = [] {
         const fs::path d = test_dir() / "street";
         fs::remove_all(d);
-        const Result r = run("simulate -o " + d.string() + " --frames 6 --seed 3 --no-progress");
+        const CliResult r = run("simulate -o " + d.string() + " --frames 6 --seed 3 --no-progress");
         EXPECT_EQ(r.exit_code, 0) << r.output;
         return d;
     }();
     return dir;
-}
-
-nlohmann::json read_json(const fs::path& path) {
-    std::ifstream in(path);
-    return nlohmann::json::parse(in);
 }
 
 }  // namespace
@@ -65,8 +43,8 @@ nlohmann::json read_json(const fs::path& path) {
 TEST(IncrementalCli, MapsFrameByFrameWithProgressMeshes) {
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r = run("map " + street().string() + " -o " + out.string() +
-                         " --mode incremental --mesh-every 2 --threads 2 -q");
+    const CliResult r = run("map " + street().string() + " -o " + out.string() +
+                            " --mode incremental --mesh-every 2 --threads 2 -q");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find("s/frame with 2 threads"), std::string::npos) << r.output;
     for (const char* f : {"map.vdb", "surface.vdb", "mesh.ply", "stats.json"}) {
@@ -93,9 +71,9 @@ TEST(IncrementalCli, MapsFrameByFrameWithProgressMeshes) {
 TEST(IncrementalCli, PretrainWritesADecoderThatIncrementalModeLoads) {
     const fs::path decoder = test_dir() / "decoder.yaml";
     fs::remove(decoder);
-    const Result p = run("pretrain -o " + decoder.string() +
-                         " --seeds 7 --frames 1 --iterations 30 --threads 2 -q --work-dir " +
-                         (test_dir() / "work").string());
+    const CliResult p = run("pretrain -o " + decoder.string() +
+                            " --seeds 7 --frames 1 --iterations 30 --threads 2 -q --work-dir " +
+                            (test_dir() / "work").string());
     ASSERT_EQ(p.exit_code, 0) << p.output;
     ASSERT_TRUE(fs::exists(decoder));
     std::ifstream in(decoder);
@@ -108,8 +86,9 @@ TEST(IncrementalCli, PretrainWritesADecoderThatIncrementalModeLoads) {
                           << "\n  iterations_per_frame: 5\n";
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r = run("map " + street().string() + " -o " + out.string() +
-                         " --mode incremental --last-frame 1 --no-eval -q -c " + config.string());
+    const CliResult r =
+        run("map " + street().string() + " -o " + out.string() +
+            " --mode incremental --last-frame 1 --no-eval -q -c " + config.string());
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_EQ(read_json(out / "stats.json").at("incremental").at("decoder_weights"),
               decoder.string());
@@ -118,8 +97,8 @@ TEST(IncrementalCli, PretrainWritesADecoderThatIncrementalModeLoads) {
 TEST(IncrementalCli, ForgettingExperimentWritesReportAndPicture) {
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r = run("forgetting " + street().string() + " -o " + out.string() +
-                         " --iterations-per-frame 20 --threads 2 -q");
+    const CliResult r = run("forgetting " + street().string() + " -o " + out.string() +
+                            " --iterations-per-frame 20 --threads 2 -q");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_TRUE(fs::exists(out / "forgetting.png"));
     EXPECT_TRUE(fs::exists(out / "regularized" / "mesh.ply"));
@@ -137,7 +116,7 @@ TEST(IncrementalCli, ForgettingExperimentWritesReportAndPicture) {
 TEST(IncrementalCli, BadSettingsFailWithAClearMessage) {
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    Result r = run("map " + street().string() + " -o " + out.string() + " --mode online -q");
+    CliResult r = run("map " + street().string() + " -o " + out.string() + " --mode online -q");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("incremental"), std::string::npos) << r.output;
 

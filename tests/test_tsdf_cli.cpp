@@ -8,7 +8,10 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_test_support.hpp"
+
 namespace fs = std::filesystem;
+using namespace shine::cli_test;
 
 namespace {
 
@@ -16,30 +19,9 @@ namespace {
 // F-score 0.894 at 10 cm; the bound leaves room for other machines' floating-point differences.
 constexpr double kMinFscore = 0.85;
 
-const fs::path kRoot = fs::path(SHINE_TEST_TMP_DIR) / "tsdf_cli";
+fs::path test_dir() { return test_dir_of("tsdf_cli"); }
 
-struct Result {
-    int exit_code;
-    std::string output;
-};
-
-// ctest runs each test in its own process, in parallel: every test works in its own directory.
-fs::path test_dir() {
-    const fs::path d = kRoot / ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    fs::create_directories(d);
-    return d;
-}
-
-Result run(const std::string& args) {
-    const fs::path log = test_dir() / "last_command.log";
-    const std::string command =
-        "'" + std::string(SHINE_CLI_PATH) + "' " + args + " > '" + log.string() + "' 2>&1";
-    const int status = std::system(command.c_str());
-    std::ifstream in(log);
-    std::stringstream text;
-    text << in.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
+CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
 
 const char* const kOutputs[] = {"tsdf.vdb", "mesh.ply", "stats.json"};
 
@@ -48,14 +30,14 @@ const char* const kOutputs[] = {"tsdf.vdb", "mesh.ply", "stats.json"};
 TEST(TsdfCli, SimulatedStreetGivesAnAccurateMeshAndStats) {
     const fs::path street = test_dir() / "street";
     fs::remove_all(street);
-    const Result sim =
+    const CliResult sim =
         run("simulate -o '" + street.string() + "' --frames 4 --seed 3 --no-progress");
     ASSERT_EQ(sim.exit_code, 0) << sim.output;
 
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r = run("tsdf '" + street.string() + "' -o '" + out.string() +
-                         "' --voxel-size-m 0.2 --trunc-m 0.6 --min-weight 1 --threads 2 -q");
+    const CliResult r = run("tsdf '" + street.string() + "' -o '" + out.string() +
+                            "' --voxel-size-m 0.2 --trunc-m 0.6 --min-weight 1 --threads 2 -q");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find("F-score"), std::string::npos) << r.output;
     for (const char* f : kOutputs) EXPECT_TRUE(fs::exists(out / f)) << f;
@@ -84,8 +66,8 @@ TEST(TsdfCli, SimulatedStreetGivesAnAccurateMeshAndStats) {
     EXPECT_GT(fscore, kMinFscore);
 
     // The mesh is a valid input to `shine eval`, which agrees with the stored metrics.
-    const Result e = run("eval --pred '" + (out / "mesh.ply").string() + "' --ref '" +
-                         (street / "gt_mesh.ply").string() + "' --json");
+    const CliResult e = run("eval --pred '" + (out / "mesh.ply").string() + "' --ref '" +
+                            (street / "gt_mesh.ply").string() + "' --json");
     ASSERT_EQ(e.exit_code, 0) << e.output;
     EXPECT_DOUBLE_EQ(nlohmann::json::parse(e.output).at("fscore").get<double>(), fscore);
 }
@@ -93,7 +75,7 @@ TEST(TsdfCli, SimulatedStreetGivesAnAccurateMeshAndStats) {
 TEST(TsdfCli, MissingDirectoryFailsWithItsNameAndNoOutputs) {
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r =
+    const CliResult r =
         run("tsdf '" + (test_dir() / "no_such_dir").string() + "' -o '" + out.string() + "' -q");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("no_such_dir"), std::string::npos) << r.output;
@@ -103,8 +85,8 @@ TEST(TsdfCli, MissingDirectoryFailsWithItsNameAndNoOutputs) {
 TEST(TsdfCli, InvalidParametersAreRejectedByName) {
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    Result r = run("tsdf '" + (test_dir() / "unused").string() + "' -o '" + out.string() +
-                   "' --voxel-size-m -0.1 -q");
+    CliResult r = run("tsdf '" + (test_dir() / "unused").string() + "' -o '" + out.string() +
+                      "' --voxel-size-m -0.1 -q");
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.output.find("--voxel-size-m"), std::string::npos) << r.output;
     r = run("tsdf '" + (test_dir() / "unused").string() + "' -o '" + out.string() +
