@@ -40,6 +40,8 @@ struct MapOptions {
     bool half_features = false;
     std::string mode = "batch";
     int mesh_every = -1;
+    double max_map_mb = -1.0;  ///< < 0: the configuration's map.max_map_mb
+    bool profile = false;
 };
 
 void write_json(const fs::path& path, const nlohmann::json& json) {
@@ -81,6 +83,31 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
                            {"progress_meshes", meshes}};
 }
 
+/// The stage profile: per stage the median over frames and the run total, plus per frame.
+nlohmann::json profile_to_json(const StageProfile& profile) {
+    const StageSeconds medians = profile.frame_medians();
+    const StageSeconds totals = profile.totals();
+    nlohmann::json median_json, total_json;
+    for (int i = 0; i < kNumStages; ++i) {
+        const Stage stage = static_cast<Stage>(i);
+        median_json[stage_name(stage)] = medians[stage];
+        total_json[stage_name(stage)] = totals[stage];
+    }
+    nlohmann::json frames = nlohmann::json::array();
+    for (const StageSeconds& f : profile.frames) {
+        nlohmann::json frame;
+        for (int i = 0; i < kNumStages; ++i) {
+            frame[stage_name(static_cast<Stage>(i))] = f.seconds[i];
+        }
+        frames.push_back(frame);
+    }
+    return {{"threads", profile.threads},
+            {"median_frame_seconds", profile.median_frame_seconds()},
+            {"median_seconds_per_frame_by_stage", median_json},
+            {"total_seconds_by_stage", total_json},
+            {"frames", frames}};
+}
+
 int run_map(const MapOptions& opt) {
     const auto start_total = std::chrono::steady_clock::now();
     Progress::set_globally_enabled(!opt.quiet);
@@ -99,6 +126,7 @@ int run_map(const MapOptions& opt) {
     if (opt.seed >= 0) config.seed = static_cast<std::uint64_t>(opt.seed);
     if (opt.half_features) config.octree.feature_precision = FeaturePrecision::kFloat16;
     if (opt.mesh_every >= 0) config.incremental.mesh_every = opt.mesh_every;
+    if (opt.max_map_mb >= 0.0) config.max_map_mb = opt.max_map_mb;
     config.finalize();
     if (opt.print_config) {
         std::printf("%s", config_to_yaml(config).c_str());
@@ -175,6 +203,8 @@ int run_map(const MapOptions& opt) {
     json["mesh"] = {{"vertices", mesh.vertices.size()}, {"triangles", mesh.triangles.size()}};
     json["loss"] = {{"bce", stats.final_bce}, {"eikonal", stats.final_eikonal}};
     if (incremental) add_incremental_stats(*incremental_map, json);
+    const StageProfile& profile = incremental ? incremental_map->profile : batch_map->profile;
+    json["profile"] = profile_to_json(profile);
 
     std::printf("mapped %zu frames (%zu rays) in %.1f s: %.3f s/frame, map %.2f MB (%zu corners)\n",
                 stats.frames, stats.rays, seconds_since(start_total),
@@ -187,6 +217,7 @@ int run_map(const MapOptions& opt) {
     }
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
                 (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), mesh.triangles.size());
+    if (opt.profile) std::printf("%s", profile.format_table().c_str());
     if (!ref.empty()) {
         const auto t0 = std::chrono::steady_clock::now();
         const MeshMetrics metrics = evaluate_meshes(mesh, read_ply_mesh(ref));
@@ -231,6 +262,13 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     cmd->add_flag("--half-features", opt->half_features,
                   "Store the features in float16 (map.feature_precision: float16)");
     cmd->add_flag("--no-eval", opt->no_eval, "Skip the evaluation");
+    cmd->add_option("--max-map-mb", opt->max_map_mb,
+                    "Stop before training if the map (features + structure) would exceed this "
+                    "many MB (0 = unlimited; config map.max_map_mb)")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_flag("--profile", opt->profile,
+                  "Print seconds per stage (per-frame medians and run totals; also in "
+                  "stats.json \"profile\")");
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
     cmd->add_flag("--print-config", opt->print_config,
                   "Print the effective configuration as YAML and exit");

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "cli_common.hpp"
 #include "command_registry.hpp"
@@ -15,6 +16,7 @@ namespace {
 struct SimulateOptions {
     std::string out_dir;
     sim::SimulationConfig config;
+    std::vector<double> origin_offset_m;  ///< E,N,U (x, y, z) added to every pose
     int threads = 0;
 };
 
@@ -27,8 +29,18 @@ int run_simulate(const SimulateOptions& options) {
         throw ConfigError("--noise-m = " + std::to_string(c.lidar.range_noise_sigma_m) +
                           " must be >= 0 (0 for noise-free ranges)");
     }
+    sim::SimulationConfig config = c;
+    if (!options.origin_offset_m.empty()) {
+        if (options.origin_offset_m.size() != 3) {
+            throw ConfigError(
+                "--origin-offset-m takes three numbers E,N,U (x,y,z in metres), got " +
+                std::to_string(options.origin_offset_m.size()));
+        }
+        config.origin_offset_world_m = Eigen::Vector3d(
+            options.origin_offset_m[0], options.origin_offset_m[1], options.origin_offset_m[2]);
+    }
     const auto thread_limit = limit_threads(options.threads);
-    const sim::SimulationSummary summary = sim::simulate_sequence(c, options.out_dir);
+    const sim::SimulationSummary summary = sim::simulate_sequence(config, options.out_dir);
     std::printf(
         "wrote %s: %d scans (%zu points, %zu..%zu per scan), poses.txt, gt_mesh.ply "
         "(%zu triangles, %zu observed), simulation.json, README.txt in %.1f s\n",
@@ -69,6 +81,12 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
                     "longest triangle edge of the reference mesh, m")
         ->check(CLI::Range(0.02, 10.0))
         ->capture_default_str();
+    cmd->add_option("--origin-offset-m", options->origin_offset_m,
+                    "E,N,U: move the drive to these world coordinates, m (e.g. "
+                    "500000,5000000,0 for UTM-like poses); poses.txt includes it, gt_mesh.ply "
+                    "keeps small vertex coordinates and names the offset in its header")
+        ->delimiter(',')
+        ->expected(3);
     cmd->add_option("--threads", options->threads, "worker threads (0 = all cores)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();

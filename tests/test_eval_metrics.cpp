@@ -236,5 +236,21 @@ TEST(MetricsReport, TextInCentimetresAndPercentJsonInMetres) {
     EXPECT_EQ(json.size(), 15u);
 }
 
+TEST(MeshMetrics, MeshesOfFarAwayMapsAreComparedInTheReferenceFrame) {
+    // The same plane described from two frames 1 km apart at UTM-like coordinates, where float32
+    // world coordinates would be 0.5 m coarse: the frames' shift is applied in double.
+    TriangleMesh ref = reference();
+    ref.origin_world_m = Eigen::Vector3d(499000.0, 5000000.0, 0.0);
+    TriangleMesh pred = plane(-1000, -996, 0, 4, kShiftM, 0.13);
+    pred.origin_world_m = Eigen::Vector3d(500000.0, 5000000.0, 0.0);
+    const MeshMetrics m = evaluate_meshes(pred, ref);
+    EXPECT_NEAR(m.accuracy_m, kShiftM, kShiftTolM);
+    EXPECT_NEAR(m.completion_m, kShiftM, kShiftTolM);
+    EXPECT_GT(m.fscore, 1.0 - kRatioTol);
+    // The same pred with the reference's origin forgotten is 1 km away.
+    pred.origin_world_m = ref.origin_world_m;
+    EXPECT_EQ(evaluate_meshes(pred, ref).fscore, 0.0);
+}
+
 }  // namespace
 }  // namespace shine

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <string>
@@ -496,4 +497,35 @@ TEST(PlyPoints, ParsesBytesInMemory) {
     ASSERT_EQ(points.size(), 2u);
     EXPECT_EQ(points[1], Eigen::Vector3f(4, 5, 6));
     EXPECT_EQ(shine::parse_ply_mesh(text, "memory.ply").vertices, points);
+}
+
+TEST(PlyMesh, OriginOfFarAwayMeshesRoundTripsInTheHeader) {
+    const fs::path dir = test_dir("origin");
+    shine::TriangleMesh mesh = random_mesh(10, 5, /*observed=*/false);
+    mesh.origin_world_m = Eigen::Vector3d(500000.125, 5000000.0625, -12.5);
+    shine::write_ply_mesh(dir / "far.ply", mesh);
+    const shine::TriangleMesh back = shine::read_ply_mesh(dir / "far.ply");
+    EXPECT_EQ(back.origin_world_m, mesh.origin_world_m);  // exact: printed with 17 digits
+    ASSERT_EQ(back.vertices.size(), mesh.vertices.size());
+    EXPECT_EQ(back.vertices[3], mesh.vertices[3]);
+    // Near the world origin nothing changes: no comment, zero origin.
+    shine::write_ply_mesh(dir / "near.ply", random_mesh(10, 5, false));
+    std::ifstream near(dir / "near.ply", std::ios::binary);
+    const std::string text((std::istreambuf_iterator<char>(near)), {});
+    EXPECT_EQ(text.find("shine_origin_world_m"), std::string::npos);
+    EXPECT_EQ(shine::read_ply_mesh(dir / "near.ply").origin_world_m, Eigen::Vector3d::Zero());
+}
+
+TEST(PlyMesh, MalformedOriginCommentNamesTheLine) {
+    const fs::path path = test_dir("bad_origin") / "mesh.ply";
+    write_bytes(path,
+                "ply\nformat ascii 1.0\ncomment shine_origin_world_m 1 nan 3\n"
+                "element vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+                "end_header\n");
+    expect_io_error([&] { shine::read_ply_mesh(path); }, path, "line 3");
+    write_bytes(path,
+                "ply\nformat ascii 1.0\ncomment shine_origin_world_m 1 2\n"
+                "element vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+                "end_header\n");
+    expect_io_error([&] { shine::read_ply_mesh(path); }, path, "line 3");
 }

@@ -256,7 +256,7 @@ TEST(TsdfMesh, ScannedPlaneIsMeshedWithinAFractionOfAVoxel) {
     // Vertices within 8 m of the first sensor, away from the grazing-angle fringe.
     std::vector<double> errors;
     for (const auto& v : mesh.vertices) {
-        const Eigen::Vector3d p = v.cast<double>() - kWorldOffset;
+        const Eigen::Vector3d p = mesh.origin_world_m + v.cast<double>() - kWorldOffset;
         if (std::hypot(p.x(), p.y()) < 8.0) errors.push_back(std::abs(p.z() - kPlaneZ));
     }
     ASSERT_GT(errors.size(), 1000u);

@@ -7,6 +7,12 @@ the same order, as the ``mesh.ply`` of ``shine map`` / ``shine mesh`` plus that 
 places its output where the Volume object is, so the importer moves the Volume object by minus half
 a voxel: the mesh then lies exactly where ``mesh.ply`` lies, in the same world frame (numbers in
 docs/blender.md; checked by tests/blender/test_import.py).
+
+Far-away maps (UTM coordinates) are stored in a local frame, with the frame's world position in
+the grid's ``shine_origin_world_m`` metadata; Blender's float32 coordinates would be 0.5 m coarse
+at 5e6 m. The importer keeps the mesh in the local frame and stores that origin on the object as
+the custom property ``shine_origin_world_m`` (x, y, z in metres), as ``mesh.ply`` carries it in
+its header.
 """
 
 import os
@@ -72,6 +78,8 @@ def import_level_set(
     except BaseException:
         bpy.data.batch_remove(created)  # leave nothing of a failed import behind
         raise
+    if grid.origin_world_m is not None and any(grid.origin_world_m):
+        mesh_object["shine_origin_world_m"] = list(grid.origin_world_m)
     for selected in view_layer.objects.selected:
         selected.select_set(False, view_layer=view_layer)
     mesh_object.select_set(True, view_layer=view_layer)

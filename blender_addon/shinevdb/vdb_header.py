@@ -23,7 +23,7 @@ from __future__ import annotations
 import os
 import struct
 from dataclasses import dataclass
-from typing import BinaryIO, Dict, List
+from typing import BinaryIO, Dict, List, Optional, Tuple
 
 _MAGIC = 0x56444220
 _MIN_FORMAT_VERSION = 222  # per-grid compression flags; written by OpenVDB 3.0 and later
@@ -43,6 +43,9 @@ class GridInfo:
     name: str
     tree_type: str  # e.g. "Tree_float_5_4_3"
     grid_class: str  # "level set", "fog volume", "staggered" or "unknown"
+    # World position of the grid's frame (metadata "shine_origin_world_m", vec3d), if present:
+    # ShineVDB keeps far-away (UTM) maps in a local frame, world = origin + local.
+    origin_world_m: Optional[Tuple[float, float, float]] = None
 
     @property
     def value_type(self) -> str:
@@ -149,6 +152,9 @@ def read_grids(path: str) -> List[GridInfo]:
             reader.unpack("I", f"compression flags of grid '{name}'")
             grid_meta = reader.metadata(f"metadata of grid '{name}'")
             grid_class = grid_meta.get("class", b"unknown").decode("utf-8", errors="replace")
-            grids.append(GridInfo(name=name, tree_type=tree_type, grid_class=grid_class))
+            origin = grid_meta.get("shine_origin_world_m")
+            origin_world_m = struct.unpack("<3d", origin) if origin and len(origin) == 24 else None
+            grids.append(GridInfo(name=name, tree_type=tree_type, grid_class=grid_class,
+                                  origin_world_m=origin_world_m))
             reader.seek(end_pos)
     return grids

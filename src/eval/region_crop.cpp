@@ -69,6 +69,7 @@ double VoxelRegion::volume_m3() const {
 
 TriangleMesh crop_mesh(const TriangleMesh& mesh, const VoxelRegion& region) {
     TriangleMesh out;
+    out.origin_world_m = mesh.origin_world_m;  // the region is in the mesh's frame
     std::vector<int> new_index(mesh.vertices.size(), -1);
     const bool flags = mesh.face_observed.size() == mesh.triangles.size();
     for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {

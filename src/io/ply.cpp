@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -102,6 +103,7 @@ struct Header {
     std::vector<Element> elements;
     std::size_t body_offset = 0;  // byte offset of the first body byte
     std::size_t body_line = 0;    // line number of the first body line (ascii)
+    Eigen::Vector3d origin_world_m = Eigen::Vector3d::Zero();  // kOriginComment, if present
 };
 
 std::string number_text(double value) {
@@ -120,6 +122,29 @@ std::vector<std::string_view> split_words(std::string_view line) {
         if (i > start) words.push_back(line.substr(start, i - start));
     }
     return words;
+}
+
+/// The comment that carries TriangleMesh::origin_world_m:
+/// "comment shine_origin_world_m <x> <y> <z> (world = origin + vertex)".
+constexpr std::string_view kOriginComment = "shine_origin_world_m";
+
+Eigen::Vector3d parse_origin_comment(const fs::path& path, const std::string& where,
+                                     const std::vector<std::string_view>& words) {
+    Eigen::Vector3d origin;
+    for (int a = 0; a < 3; ++a) {
+        const std::size_t w = 2 + static_cast<std::size_t>(a);
+        if (w >= words.size()) {
+            fail(path, where, "expected 'comment shine_origin_world_m <x> <y> <z>'");
+        }
+        const std::string text(words[w]);
+        char* end = nullptr;
+        origin[a] = std::strtod(text.c_str(), &end);
+        if (end != text.c_str() + text.size() || !std::isfinite(origin[a])) {
+            fail(path, where,
+                 "the map origin '" + printable_excerpt(words[w]) + "' is not a finite number");
+        }
+    }
+    return origin;
 }
 
 Header parse_header(const fs::path& path, std::string_view data) {
@@ -152,6 +177,10 @@ Header parse_header(const fs::path& path, std::string_view data) {
         const auto words = split_words(line);
         if (words.empty()) continue;
         const std::string_view key = words[0];
+        if (key == "comment" && words.size() > 1 && words[1] == kOriginComment) {
+            header.origin_world_m = parse_origin_comment(path, where, words);
+            continue;
+        }
         if (key == "comment" || key == "obj_info") continue;
         if (key == "format") {
             if (words.size() != 3) fail(path, where, "expected 'format <type> 1.0'");
@@ -527,6 +556,7 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
 ReadResult parse_ply(std::string_view data, const fs::path& path, bool want_faces) {
     const Header header = parse_header(path, data);
     ReadResult result;
+    result.mesh.origin_world_m = header.origin_world_m;
     if (header.format == Format::kAscii) {
         AsciiReader reader(path, data, header.body_offset, header.body_line);
         read_body(reader, header, path, want_faces, &result);
@@ -562,8 +592,14 @@ char* put_le(char* out, T value) {
 }
 
 std::string header_text(std::size_t vertex_count, std::size_t face_count, bool with_faces,
-                        bool with_observed) {
+                        bool with_observed,
+                        const Eigen::Vector3d& origin_world_m = Eigen::Vector3d::Zero()) {
     std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by ShineVDB\n";
+    if (!origin_world_m.isZero(0.0)) {
+        h += "comment " + std::string(kOriginComment);
+        for (int a = 0; a < 3; ++a) h += " " + number_text(origin_world_m[a]);
+        h += " (world = origin + vertex)\n";
+    }
     h += "element vertex " + std::to_string(vertex_count) + "\n";
     h += "property float x\nproperty float y\nproperty float z\n";
     if (with_faces) {
@@ -623,7 +659,8 @@ void write_ply_mesh(const fs::path& path, const TriangleMesh& mesh) {
             }
         }
     }
-    const std::string header = header_text(nv, nf, /*with_faces=*/true, with_observed);
+    const std::string header =
+        header_text(nv, nf, /*with_faces=*/true, with_observed, mesh.origin_world_m);
     const std::size_t face_bytes = 1 + 3 * sizeof(std::int32_t) + (with_observed ? 1 : 0);
     std::string buffer(header.size() + nv * 3 * sizeof(float) + nf * face_bytes, '\0');
     std::memcpy(buffer.data(), header.data(), header.size());

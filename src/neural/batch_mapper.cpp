@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "shine/core/error.hpp"
+#include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/sampling/surface_normals.hpp"
 
@@ -21,7 +22,8 @@ BatchMapper::BatchMapper(const MapperConfig& config) : config_(config) {
 
 BatchMapper::~BatchMapper() = default;
 
-void BatchMapper::add_scan(const Scan& scan) {
+StageSeconds BatchMapper::add_scan(const Scan& scan) {
+    StageSeconds stages;
     auto start = std::chrono::steady_clock::now();
     PreprocessStats pre;
     const std::vector<Eigen::Vector3f> points_sensor =
@@ -43,13 +45,17 @@ void BatchMapper::add_scan(const Scan& scan) {
     }
     const Eigen::Vector3f origin_map = T_map_sensor.translation().cast<float>();
     rays_.add_scan(origin_map, points_map);
-    stats_.load_seconds += seconds_since(start);
+    stages[Stage::kPreprocess] = seconds_since(start);
+    stats_.load_seconds += stages[Stage::kPreprocess];
 
     start = std::chrono::steady_clock::now();
     sdf_->octree.allocate_cells(points_map);
-    stats_.allocate_seconds += seconds_since(start);
+    check_map_budget(*sdf_, config_.max_map_mb, stats_.frames, scan.source);
+    stages[Stage::kAllocate] = seconds_since(start);
+    stats_.allocate_seconds += stages[Stage::kAllocate];
     ++stats_.frames;
     stats_.rays = rays_.num_rays();
+    return stages;
 }
 
 void BatchMapper::train(const std::function<void(std::size_t, double)>& on_progress) {
@@ -83,6 +89,7 @@ void BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
     stats_.final_bce = last.bce;
     stats_.final_eikonal = last.eikonal;
     stats_.train_seconds += seconds_since(start);
+    stats_.sample_seconds += trainer.seconds().sample;
 }
 
 }  // namespace shine

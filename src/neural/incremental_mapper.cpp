@@ -6,6 +6,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/io/preprocess.hpp"
+#include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/model/decoder_file.hpp"
 #include "shine/sampling/ray_set.hpp"
@@ -62,6 +63,9 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     if (inc.iterations_per_frame < 1) {
         throw ConfigError("incremental.iterations_per_frame must be at least 1");
     }
+    if (inc.importance_ray_stride < 1) {
+        throw ConfigError("incremental.importance_ray_stride must be at least 1");
+    }
     if (inc.normal_window_frames < 1) {
         throw ConfigError("incremental.normal_window_frames must be at least 1");
     }
@@ -106,6 +110,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     // 2. Grow the map.
     start = std::chrono::steady_clock::now();
     frame.new_corners = sdf_->octree.allocate_cells(current.points_map);
+    check_map_budget(*sdf_, config_.max_map_mb, frames_.size(), scan.source);
     trainer_->on_map_grown();
     importance_.resize(sdf_->octree.num_corners());
     frame.allocate_seconds = seconds_since(start);
@@ -133,6 +138,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
 
     // 4. Train on the current scan only.
     start = std::chrono::steady_clock::now();
+    trainer_->reset_seconds();
     const ImportanceWeights* regularizer = importance_.enabled() ? &importance_ : nullptr;
     if (ray_end > ray_begin) {
         TrainStepStats last;
@@ -162,7 +168,8 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     if (regularizer && ray_end > ray_begin) {
         std::fill(gradient_norm_sums_.begin(), gradient_norm_sums_.end(), 0.0f);
         const std::size_t samples = trainer_->accumulate_bce_gradient_norms(
-            rays, ray_begin, ray_end, frames_.size(), gradient_norm_sums_);
+            rays, ray_begin, ray_end, frames_.size(), gradient_norm_sums_,
+            static_cast<std::size_t>(config_.incremental.importance_ray_stride));
         // The paper's sum over the scan's samples, divided by their number N: with the mean BCE
         // of a batch as the data loss, lambda_r * Omega is then on the scale of the data
         // gradient whatever the scan's point count (see docs/incremental.md).
@@ -175,6 +182,16 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     }
     frame.importance_seconds = seconds_since(start);
     frame.total_seconds = seconds_since(frame_start);
+    frame.stages[Stage::kPreprocess] = frame.preprocess_seconds;
+    frame.stages[Stage::kAllocate] = frame.allocate_seconds;
+    frame.stages[Stage::kNormals] = frame.normals_seconds;
+    // The window's ray set is assembled between allocation and normals: counted as preprocessing.
+    frame.stages[Stage::kPreprocess] += frame.total_seconds - frame.preprocess_seconds -
+                                        frame.allocate_seconds - frame.normals_seconds -
+                                        frame.train_seconds - frame.importance_seconds;
+    frame.stages[Stage::kSample] = std::min(trainer_->seconds().sample, frame.train_seconds);
+    frame.stages[Stage::kTrain] = frame.train_seconds - frame.stages[Stage::kSample];
+    frame.stages[Stage::kImportance] = frame.importance_seconds;
     stats_.load_seconds += frame.preprocess_seconds;
     stats_.allocate_seconds += frame.allocate_seconds;
     stats_.normals_seconds += frame.normals_seconds;

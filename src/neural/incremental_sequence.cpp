@@ -1,5 +1,7 @@
 #include "shine/mapper/incremental_sequence.hpp"
 
+#include <tbb/global_control.h>
+
 #include <chrono>
 #include <cstdio>
 
@@ -38,7 +40,13 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
     {
         Progress progress(progress_tag.empty() ? "map" : "map " + progress_tag, sequence.size());
         for (std::size_t i = 0; i < sequence.size(); ++i) {
-            const IncrementalFrameStats& frame = mapper.add_scan(sequence.load(i));
+            const auto t_load = std::chrono::steady_clock::now();
+            const Scan scan = sequence.load(i);
+            const double load_seconds = seconds_since(t_load);
+            const IncrementalFrameStats& frame = mapper.add_scan(scan);
+            StageSeconds stages = frame.stages;
+            stages[Stage::kLoad] = load_seconds;
+            result.profile.frames.push_back(stages);
             char detail[96];
             std::snprintf(detail, sizeof(detail), "%.2f s/frame, bce %.4f, %zu corners",
                           frame.total_seconds, frame.bce, mapper.sdf().octree.num_corners());
@@ -64,6 +72,9 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
         progress.finish(detail);
     }
     result.products = write_map_products(mapper.sdf(), config, out_dir);
+    result.profile.threads = static_cast<int>(
+        tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+    result.profile.run = product_stages(result.products);
     if (mesh_every > 0 && sequence.size() > 0) {
         // The final mesh is the last progress mesh too, so the series ends with the whole run.
         const auto t0 = std::chrono::steady_clock::now();

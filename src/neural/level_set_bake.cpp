@@ -77,10 +77,10 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
     });
 
     auto grid = openvdb::FloatGrid::create(background_m);
-    auto transform = openvdb::math::Transform::createLinearTransform(voxel_m);
-    transform->postTranslate(
-        openvdb::Vec3d(sdf.origin_world_m.x(), sdf.origin_world_m.y(), sdf.origin_world_m.z()));
-    grid->setTransform(transform);
+    // The grid stays in the map frame (index * voxel_m); the map frame's world position is the
+    // shine_origin_world_m metadata below. A world-frame transform would put far-away (UTM) maps
+    // at 5e6 m, where the float32 coordinates of meshers, Blender and Houdini are 0.5 m apart.
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(voxel_m));
     grid->setGridClass(openvdb::GRID_LEVEL_SET);
     grid->setName("surface");
     std::size_t evaluated = 0;

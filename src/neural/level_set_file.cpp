@@ -4,6 +4,7 @@
 
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/io/vdb_file_check.hpp"
 
 namespace shine {
 
@@ -25,6 +26,8 @@ openvdb::FloatGrid::Ptr read_level_set(const std::filesystem::path& path) {
     if (!std::filesystem::is_regular_file(path)) {
         throw IoError("level set file '" + path.string() + "' does not exist");
     }
+    // A damaged file is reported with its byte offset before OpenVDB reads it (see map_file.cpp).
+    check_vdb_file(path);
     openvdb::GridPtrVecPtr grids;
     try {
         openvdb::io::File file(path.string());

@@ -13,6 +13,11 @@ TriangleMesh mesh_level_set(const openvdb::FloatGrid& level_set, const MeshConfi
     openvdb::tools::volumeToMesh(level_set, points, triangles, quads, config.isovalue_m,
                                  config.adaptivity);
     TriangleMesh mesh;
+    // Grids baked by ShineVDB are in the map frame and name its world position.
+    if (const auto origin = level_set.getMetadata<openvdb::Vec3DMetadata>(kOriginMetadataKey)) {
+        const openvdb::Vec3d& o = origin->value();
+        mesh.origin_world_m = Eigen::Vector3d(o.x(), o.y(), o.z());
+    }
     mesh.vertices.reserve(points.size());
     for (const auto& p : points) mesh.vertices.emplace_back(p.x(), p.y(), p.z());
     mesh.triangles.reserve(triangles.size() + 2 * quads.size());

@@ -9,6 +9,7 @@
 
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/io/vdb_file_check.hpp"
 #include "shine/map/feature_octree_impl.hpp"
 
 namespace shine {
@@ -186,6 +187,9 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
     if (!std::filesystem::is_regular_file(path)) {
         throw IoError("map file '" + path.string() + "' does not exist");
     }
+    // OpenVDB trusts the sizes inside a file (docs/reliability.md): a damaged file is reported
+    // here with its byte offset and never reaches OpenVDB's reader.
+    check_vdb_file(path);
     openvdb::GridPtrVecPtr grids;
     openvdb::MetaMap::Ptr meta;
     try {
@@ -283,6 +287,10 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
     }
     const auto origin = required<openvdb::Vec3DMetadata>(*meta, "shine_origin_world_m", path);
     sdf.origin_world_m = Eigen::Vector3d(origin.x(), origin.y(), origin.z());
+    if (!sdf.origin_world_m.allFinite()) {
+        throw IoError("'" + path.string() +
+                      "': the map origin 'shine_origin_world_m' is not finite");
+    }
 
     // Rebuild each level's topology (shifted index space) and packed rows from its Int32Grid;
     // every corner keeps the row the file gives it, so the table is used as stored.

@@ -1,5 +1,7 @@
 #include "shine/mapper/map_sequence.hpp"
 
+#include <tbb/global_control.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -66,7 +68,12 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
     {
         Progress progress(tagged("load", progress_tag), sequence.size());
         for (std::size_t i = 0; i < sequence.size(); ++i) {
-            mapper.add_scan(sequence.load(i));
+            const auto t0 = std::chrono::steady_clock::now();
+            const Scan scan = sequence.load(i);
+            const double load_seconds = seconds_since(t0);
+            StageSeconds stages = mapper.add_scan(scan);
+            stages[Stage::kLoad] = load_seconds;
+            result.profile.frames.push_back(stages);
             progress.update(i + 1, std::to_string(mapper.sdf().octree.num_corners()) + " corners");
         }
         progress.finish(std::to_string(mapper.stats().rays) + " rays, " +
@@ -74,7 +81,22 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
     }
     train_with_progress(mapper, config.batch_iterations(), tagged("train", progress_tag));
     result.products = write_map_products(mapper.sdf(), config, out_dir);
+    const MappingStats& stats = mapper.stats();
+    StageProfile& profile = result.profile;
+    profile.threads = static_cast<int>(
+        tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+    profile.run = product_stages(result.products);
+    profile.run[Stage::kNormals] = stats.normals_seconds;
+    profile.run[Stage::kSample] = stats.sample_seconds;
+    profile.run[Stage::kTrain] = stats.train_seconds - stats.sample_seconds;
     return result;
+}
+
+StageSeconds product_stages(const MapProducts& products) {
+    StageSeconds stages;
+    stages[Stage::kBake] = products.bake_seconds;
+    stages[Stage::kMesh] = products.mesh_seconds;
+    return stages;
 }
 
 }  // namespace shine

@@ -73,10 +73,17 @@ Field int_list(std::vector<int>& field, int lo, int hi) {
             }};
 }
 
+/// The text of a scalar value; a list or mapping is a ConfigError naming the key (yaml-cpp would
+/// throw its own exception, which is not a shine::Error).
+std::string scalar_text(const YAML::Node& node, const std::string& key) {
+    if (!node.IsScalar()) throw ConfigError("key '" + key + "' must be a single value");
+    return node.Scalar();
+}
+
 Field invalid_policy(InvalidPointPolicy& field) {
     return {
         [&field](const YAML::Node& node, const std::string& key) {
-            const std::string v = node.as<std::string>();
+            const std::string v = scalar_text(node, key);
             if (v == "error")
                 field = InvalidPointPolicy::kError;
             else if (v == "drop")
@@ -99,7 +106,7 @@ Field text(std::string& field) {
 
 Field precision(FeaturePrecision& field) {
     return {[&field](const YAML::Node& node, const std::string& key) {
-                field = parse_feature_precision(node.as<std::string>(), key);
+                field = parse_feature_precision(scalar_text(node, key), key);
             },
             [&field](YAML::Emitter& out) { out << to_string(field); }};
 }
@@ -121,7 +128,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"feature_dim", number(c.octree.feature_dim, 1, 64)},
           {"init_std", number(c.octree.init_std, 0.0, 10.0)},
           {"allocation_margin_ratio", number(c.octree.allocation_margin_ratio, 0.0, 4.0)},
-          {"feature_precision", precision(c.octree.feature_precision)}}},
+          {"feature_precision", precision(c.octree.feature_precision)},
+          {"max_map_mb", number(c.max_map_mb, 0.0, 1e9)}}},
         {"decoder", {{"hidden_dims", int_list(c.decoder.hidden_dims, 1, 1024)}}},
         {"sampling",
          {{"surface_samples", number(c.sampling.surface_samples, 0, 32)},
@@ -150,7 +158,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"decoder_weights", text(c.incremental.decoder_weights)},
           {"mesh_every", number(c.incremental.mesh_every, 0, 1000000)},
           {"surface_band_m", number(c.incremental.surface_band_m, 1e-3, 10.0)},
-          {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)}}},
+          {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)},
+          {"importance_ray_stride", number(c.incremental.importance_ray_stride, 1, 1000)}}},
         {"bake",
          {{"voxel_size_m", number(c.bake.voxel_size_m, 0.0, 100.0)},
           {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)},
@@ -194,7 +203,10 @@ void parse_config_yaml(const std::string& text, const std::string& source, Mappe
     if (!root.IsMap()) throw ConfigError("'" + source + "': the top level must be a mapping");
     auto sections = schema(config);
     for (const auto& section_node : root) {
-        const std::string section_name = section_node.first.as<std::string>();
+        if (!section_node.first.IsScalar()) {
+            throw ConfigError("'" + source + "': a section name must be a single word");
+        }
+        const std::string section_name = section_node.first.Scalar();
         auto section = std::find_if(sections.begin(), sections.end(),
                                     [&](const auto& s) { return s.first == section_name; });
         if (section == sections.end()) {
@@ -207,7 +219,11 @@ void parse_config_yaml(const std::string& text, const std::string& source, Mappe
             throw ConfigError("'" + source + "': section '" + section_name + "' must be a mapping");
         }
         for (const auto& item : section_node.second) {
-            const std::string key = item.first.as<std::string>();
+            if (!item.first.IsScalar()) {
+                throw ConfigError("'" + source + "': a key of section '" + section_name +
+                                  "' must be a single word");
+            }
+            const std::string key = item.first.Scalar();
             auto field = std::find_if(section->second.begin(), section->second.end(),
                                       [&](const auto& f) { return f.first == key; });
             const std::string full = section_name + "." + key;

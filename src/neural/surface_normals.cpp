@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <nanoflann.hpp>
 
 namespace shine {
@@ -49,6 +50,8 @@ std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const Norm
     tree.buildIndex();
     const int k = std::clamp(config.neighbors, 3, kMaxNeighbors);
     const float max_radius_sq = config.max_radius_m * config.max_radius_m;
+    const float search_bound_sq =
+        std::nextafter(max_radius_sq, std::numeric_limits<float>::infinity());
 
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(ray_begin, ray_end, 4096), [&](const auto& range) {
@@ -58,6 +61,10 @@ std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const Norm
                 const Eigen::Vector3f& p = rays.endpoint(ray);
                 nanoflann::KNNResultSet<float, std::uint32_t> result(static_cast<std::size_t>(k));
                 result.init(index, distance_sq);
+                // Only neighbours within max_radius_m are used: starting the search with that
+                // bound as the k-th distance prunes the tree walk (sparse, far regions) and
+                // finds the same neighbours as an unbounded search filtered afterwards.
+                distance_sq[k - 1] = search_bound_sq;
                 tree.findNeighbors(result, p.data(), nanoflann::SearchParams());
                 const std::size_t found = result.size();
                 Eigen::Vector3d mean = Eigen::Vector3d::Zero();

@@ -3,29 +3,54 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 #include "shine/core/error.hpp"
 #include "shine/core/random.hpp"
-#include "shine/model/sample_gradient.hpp"
+#include "shine/model/batch_gradient.hpp"
 
 namespace shine {
 namespace {
 constexpr int kMaxSamplesPerRay = 64;
 constexpr std::uint64_t kImportanceSalt = 0x3c6ef372fe94f82bull;  ///< importance-pass streams
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 }  // namespace
 
-/// Per-chunk results: feature-gradient records and the chunk's decoder gradient.
+/// Per-chunk results: the chunk's samples, their batched gradients, the records of each row
+/// partition and the chunk's decoder gradient.
 struct Trainer::Chunk {
-    // Per valid sample: h = df/dF (feature_dim floats) and, per corner, row and coefficient such
-    // that dL/dtheta_row += coefficient * h (see step()).
-    std::vector<float> h;
-    std::vector<std::int32_t> rows;
-    std::vector<float> coefficients;
-    std::vector<int> corner_count;
+    std::vector<RaySample> samples;  ///< the chunk's samples of the current step
+    BatchGradient batch;
+    /// Per row partition, the records (valid sample b, corner k) as b * corner_stride + k, in
+    /// sample and corner order.
+    std::vector<std::uint32_t> records[kRowPartitions];
     std::vector<float> decoder_grads;
-    double bce = 0.0, eikonal = 0.0;
     std::size_t valid = 0, drawn = 0;
+
+    /// Sorts the batch's (sample, corner) records into the row partitions.
+    void bucket_records() {
+        for (auto& r : records) r.clear();
+        const int stride = batch.corner_stride;
+        for (std::size_t b = 0; b < batch.num_valid(); ++b) {
+            const std::uint32_t first = static_cast<std::uint32_t>(b * stride);
+            for (int k = 0; k < batch.corners[b]; ++k) {
+                const std::int32_t row = batch.rows[first + k];
+                records[row % kRowPartitions].push_back(first + k);
+            }
+        }
+    }
+};
+
+/// Per row partition: the rows the step touched, in first-touch order, their gradients (compact,
+/// feature_dim floats per touched row) and the regulariser's value.
+struct Trainer::Partition {
+    std::vector<std::int32_t> touched_rows;
+    std::vector<float> grads;
+    double regularization = 0.0;
 };
 
 Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConfig& sampling)
@@ -48,6 +73,7 @@ Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConf
     decoder_adam_.resize(1);
     decoder_grads_.assign(sdf.decoder.num_params(), 0.0f);
     chunks_.resize(std::max(1, config.num_chunks));
+    partitions_.resize(kRowPartitions);
     on_map_grown();
 }
 
@@ -57,8 +83,7 @@ void Trainer::on_map_grown() {
     const std::size_t rows = sdf_.octree.num_corners();
     const std::size_t dim = static_cast<std::size_t>(sdf_.octree.feature_dim());
     feature_adam_.resize(rows);
-    feature_grads_.resize(rows * dim, 0.0f);
-    touched_.resize(rows, 0);
+    local_index_.resize(rows, -1);
     const FeatureTable& table = sdf_.octree.features();
     if (table.precision() == FeaturePrecision::kFloat32) {
         std::vector<float>().swap(master_features_);
@@ -94,94 +119,99 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
     const bool train_decoder = config_.train_decoder;
     const std::size_t num_params = sdf_.decoder.num_params();
 
+    // Phase 1: each chunk draws its rays and their samples from its own stream.
+    auto start = std::chrono::steady_clock::now();
     tbb::parallel_for(0, num_chunks, [&](int c) {
         Chunk& chunk = chunks_[c];
-        chunk.h.clear();
-        chunk.rows.clear();
-        chunk.coefficients.clear();
-        chunk.corner_count.clear();
-        chunk.decoder_grads.assign(train_decoder ? num_params : 0, 0.0f);
-        chunk.bce = chunk.eikonal = 0.0;
-        chunk.valid = chunk.drawn = 0;
         const int ray_lo = rays_per_batch * c / num_chunks;
         const int ray_hi = rays_per_batch * (c + 1) / num_chunks;
+        chunk.samples.resize(std::size_t(ray_hi - ray_lo) * per_ray);
         Pcg32 rng(stream_seed(config_.seed, iteration, static_cast<std::uint64_t>(c)));
-        CellLookup lookup(sdf_.octree);
-        DecoderWorkspace ws;
-        sdf_.decoder.prepare(ws);
-        EncodedPoint encoded;
-        SampleGradient gradient;
-        RaySample samples[kMaxSamplesPerRay];
-        float* decoder_grads = train_decoder ? chunk.decoder_grads.data() : nullptr;
         for (int r = ray_lo; r < ray_hi; ++r) {
             const std::size_t ray = ray_begin + rng.below64(ray_end - ray_begin);
             sample_ray(rays.origin_of_ray(ray), rays.endpoint(ray), rays.normal(ray), sampling_,
-                       rng, samples);
-            for (int s = 0; s < per_ray; ++s) {
-                ++chunk.drawn;
-                if (!sample_loss_gradient(sdf_, lookup, ws, samples[s], loss_config, encoded,
-                                          gradient, decoder_grads)) {
-                    continue;
-                }
-                ++chunk.valid;
-                chunk.bce += gradient.bce;
-                chunk.eikonal += gradient.eikonal;
-                chunk.rows.insert(chunk.rows.end(), encoded.rows,
-                                  encoded.rows + encoded.num_corners);
-                chunk.coefficients.insert(chunk.coefficients.end(), gradient.coefficients,
-                                          gradient.coefficients + encoded.num_corners);
-                chunk.h.insert(chunk.h.end(), gradient.h, gradient.h + dim);
-                chunk.corner_count.push_back(encoded.num_corners);
-            }
+                       rng, chunk.samples.data() + std::size_t(r - ray_lo) * per_ray);
         }
+    });
+    seconds_.sample += seconds_since(start);
+    start = std::chrono::steady_clock::now();
+
+    // Phase 2: per-chunk losses and gradients, records sorted by row partition.
+    tbb::parallel_for(0, num_chunks, [&](int c) {
+        Chunk& chunk = chunks_[c];
+        chunk.decoder_grads.assign(train_decoder ? num_params : 0, 0.0f);
+        CellLookup lookup(sdf_.octree);
+        batch_loss_gradient(sdf_, lookup, chunk.samples.data(), chunk.samples.size(), loss_config,
+                            chunk.batch, train_decoder ? chunk.decoder_grads.data() : nullptr);
+        chunk.drawn = chunk.samples.size();
+        chunk.valid = chunk.batch.num_valid();
+        chunk.bucket_records();
     });
 
     // Reduce in chunk order: the sums do not depend on which thread ran which chunk.
     for (const Chunk& chunk : chunks_) {
         stats.valid_samples += chunk.valid;
         stats.drawn_samples += chunk.drawn;
-        stats.bce += chunk.bce;
-        stats.eikonal += chunk.eikonal;
+        stats.bce += chunk.batch.bce_sum;
+        stats.eikonal += chunk.batch.eikonal_sum;
     }
-    if (stats.valid_samples == 0) return stats;
+    if (stats.valid_samples == 0) {
+        seconds_.train += seconds_since(start);
+        return stats;
+    }
     const float inv_n = 1.0f / static_cast<float>(stats.valid_samples);
     stats.bce *= inv_n;
     stats.eikonal *= inv_n;
 
-    touched_rows_.clear();
-    for (const Chunk& chunk : chunks_) {
-        std::size_t corner = 0;
-        for (std::size_t s = 0; s < chunk.corner_count.size(); ++s) {
-            const float* h = chunk.h.data() + s * dim;
-            for (int k = 0; k < chunk.corner_count[s]; ++k, ++corner) {
-                const std::int32_t row = chunk.rows[corner];
-                const float coefficient = chunk.coefficients[corner] * inv_n;
-                float* grad = feature_grads_.data() + std::size_t(row) * dim;
-                for (int l = 0; l < dim; ++l) grad[l] += coefficient * h[l];
-                if (!touched_[row]) {
-                    touched_[row] = 1;
-                    touched_rows_.push_back(row);
+    // Phase 3: per row partition, in parallel: sum the feature gradients in chunk order, add the
+    // regulariser's gradient (Eq. (5), on the rows this iteration used: the set A of Eq. (3)),
+    // step Adam on the touched rows and clear their gradients.
+    ++steps_taken_;
+    feature_adam_.reserve_steps(steps_taken_);
+    float* params = mutable_feature_params();
+    FeatureTable& table = sdf_.octree.features();
+    const bool half = table.precision() == FeaturePrecision::kFloat16;
+    tbb::parallel_for(0, kRowPartitions, [&](int p) {
+        Partition& partition = partitions_[p];
+        std::vector<std::int32_t>& rows = partition.touched_rows;
+        std::vector<float>& grads = partition.grads;
+        rows.clear();
+        grads.clear();
+        partition.regularization = 0.0;
+        for (const Chunk& chunk : chunks_) {
+            const BatchGradient& batch = chunk.batch;
+            const std::uint32_t stride = static_cast<std::uint32_t>(batch.corner_stride);
+            const std::vector<std::uint32_t>& records = chunk.records[p];
+            constexpr std::size_t kAhead = 16;  // local_index_ is read in random row order
+            for (std::size_t r = 0; r < records.size(); ++r) {
+                if (r + kAhead < records.size()) {
+                    __builtin_prefetch(local_index_.data() + batch.rows[records[r + kAhead]], 1);
                 }
+                const std::uint32_t record = records[r];
+                const std::int32_t row = batch.rows[record];
+                std::int32_t& local = local_index_[row];
+                if (local < 0) {
+                    local = static_cast<std::int32_t>(rows.size());
+                    rows.push_back(row);
+                    grads.resize(grads.size() + dim, 0.0f);
+                }
+                const float coefficient = batch.coefficients[record] * inv_n;
+                const float* h = batch.h(record / stride);
+                float* grad = grads.data() + std::size_t(local) * dim;
+                for (int l = 0; l < dim; ++l) grad[l] += coefficient * h[l];
             }
         }
-    }
-    if (regularizer) {
-        // Eq. (5): the regulariser acts on the rows this iteration used (the set A of Eq. (3)).
-        stats.regularization = regularizer->add_gradient(mutable_feature_params(),
-                                                         feature_grads_.data(), touched_rows_);
-    }
-    feature_adam_.step_rows(mutable_feature_params(), feature_grads_.data(), touched_rows_);
-    FeatureTable& table = sdf_.octree.features();
-    if (table.precision() == FeaturePrecision::kFloat16) {
-        // Mixed precision: Adam stepped the float32 master copy; the map holds its rounding.
-        for (const std::int32_t row : touched_rows_) {
-            table.set_row(std::size_t(row), master_features_.data() + std::size_t(row) * dim);
+        if (regularizer) {
+            partition.regularization = regularizer->add_gradient_listed(params, grads.data(), rows);
         }
-    }
-    for (const std::int32_t row : touched_rows_) {
-        std::fill_n(feature_grads_.data() + std::size_t(row) * dim, dim, 0.0f);
-        touched_[row] = 0;
-    }
+        feature_adam_.step_listed_rows(params, grads.data(), rows);
+        for (const std::int32_t row : rows) {
+            // Mixed precision: Adam stepped the float32 master copy; the map holds its rounding.
+            if (half) table.set_row(std::size_t(row), params + std::size_t(row) * dim);
+            local_index_[row] = -1;
+        }
+    });
+    for (const Partition& partition : partitions_) stats.regularization += partition.regularization;
 
     if (train_decoder) {
         std::fill(decoder_grads_.begin(), decoder_grads_.end(), 0.0f);
@@ -192,6 +222,7 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         for (float& g : decoder_grads_) g *= inv_n;
         decoder_adam_.step_all(sdf_.decoder.params().data(), decoder_grads_.data());
     }
+    seconds_.train += seconds_since(start);
     return stats;
 }
 
@@ -201,61 +232,61 @@ std::uint64_t Trainer::importance_stream_seed(std::uint64_t pass, std::uint64_t 
 
 std::size_t Trainer::accumulate_bce_gradient_norms(const RaySet& rays, std::size_t ray_begin,
                                                    std::size_t ray_end, std::uint64_t pass,
-                                                   std::vector<float>& row_sums) {
+                                                   std::vector<float>& row_sums,
+                                                   std::size_t ray_stride) {
     row_sums.resize(sdf_.octree.num_corners(), 0.0f);
     std::size_t valid_samples = 0;
     if (ray_end <= ray_begin) return valid_samples;
-    const int dim = sdf_.octree.feature_dim();
+    ray_stride = std::max<std::size_t>(ray_stride, 1);
+    const auto start = std::chrono::steady_clock::now();
     const int per_ray = sampling_.samples_per_ray();
     const int num_chunks = static_cast<int>(chunks_.size());
     // BCE only: with no Eikonal weight, coefficients[k] = w_k * dL_bce/df, so the sample's
     // gradient on corner k is coefficients[k] * h and its norm |coefficients[k]| * |h|.
     const SampleLossConfig bce_only{config_.sigma_m, 0.0f};
     // Blocks of rays bound the per-chunk records; each ray has its own stream, so the samples do
-    // not depend on the split, and the sums are reduced in ray order within each block.
+    // not depend on the split, and each row partition adds its rows' norms in ray order.
     constexpr std::size_t kBlockRays = 16384;
-    for (std::size_t block = ray_begin; block < ray_end; block += kBlockRays) {
-        const std::size_t block_rays = std::min(kBlockRays, ray_end - block);
+    const std::size_t num_rays = (ray_end - ray_begin + ray_stride - 1) / ray_stride;
+    for (std::size_t block = 0; block < num_rays; block += kBlockRays) {
+        const std::size_t block_rays = std::min(kBlockRays, num_rays - block);
         tbb::parallel_for(0, num_chunks, [&](int c) {
             Chunk& chunk = chunks_[c];
-            chunk.rows.clear();
-            chunk.coefficients.clear();
-            chunk.valid = 0;
             const std::size_t lo = block + block_rays * c / num_chunks;
             const std::size_t hi = block + block_rays * (c + 1) / num_chunks;
-            CellLookup lookup(sdf_.octree);
-            DecoderWorkspace ws;
-            sdf_.decoder.prepare(ws);
-            EncodedPoint encoded;
-            SampleGradient gradient;
-            RaySample samples[kMaxSamplesPerRay];
-            for (std::size_t ray = lo; ray < hi; ++ray) {
+            chunk.samples.resize((hi - lo) * per_ray);
+            for (std::size_t i = lo; i < hi; ++i) {
+                const std::size_t ray = ray_begin + i * ray_stride;
                 Pcg32 rng(importance_stream_seed(pass, ray));
                 sample_ray(rays.origin_of_ray(ray), rays.endpoint(ray), rays.normal(ray), sampling_,
-                           rng, samples);
-                for (int s = 0; s < per_ray; ++s) {
-                    if (!sample_loss_gradient(sdf_, lookup, ws, samples[s], bce_only, encoded,
-                                              gradient, nullptr)) {
-                        continue;
-                    }
-                    ++chunk.valid;
-                    float h_sq = 0.0f;
-                    for (int l = 0; l < dim; ++l) h_sq += gradient.h[l] * gradient.h[l];
-                    const float h_norm = std::sqrt(h_sq);
-                    for (int k = 0; k < encoded.num_corners; ++k) {
-                        chunk.rows.push_back(encoded.rows[k]);
-                        chunk.coefficients.push_back(std::abs(gradient.coefficients[k]) * h_norm);
-                    }
+                           rng, chunk.samples.data() + (i - lo) * per_ray);
+            }
+            CellLookup lookup(sdf_.octree);
+            batch_loss_gradient(sdf_, lookup, chunk.samples.data(), chunk.samples.size(), bce_only,
+                                chunk.batch, nullptr);
+            BatchGradient& batch = chunk.batch;
+            chunk.valid = batch.num_valid();
+            // The coefficients become the per-sample gradient norms |coefficient_k| * |h|.
+            for (std::size_t b = 0; b < batch.num_valid(); ++b) {
+                const float h_norm =
+                    Eigen::Map<const Eigen::VectorXf>(batch.h(b), sdf_.octree.feature_dim()).norm();
+                float* coefficients = batch.coefficients.data() + b * batch.corner_stride;
+                for (int k = 0; k < batch.corners[b]; ++k) {
+                    coefficients[k] = std::abs(coefficients[k]) * h_norm;
+                }
+            }
+            chunk.bucket_records();
+        });
+        for (const Chunk& chunk : chunks_) valid_samples += chunk.valid;
+        tbb::parallel_for(0, kRowPartitions, [&](int p) {
+            for (const Chunk& chunk : chunks_) {
+                for (const std::uint32_t record : chunk.records[p]) {
+                    row_sums[chunk.batch.rows[record]] += chunk.batch.coefficients[record];
                 }
             }
         });
-        for (const Chunk& chunk : chunks_) {
-            valid_samples += chunk.valid;
-            for (std::size_t i = 0; i < chunk.rows.size(); ++i) {
-                row_sums[chunk.rows[i]] += chunk.coefficients[i];
-            }
-        }
     }
+    seconds_.importance += seconds_since(start);
     return valid_samples;
 }
 

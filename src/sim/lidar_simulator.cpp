@@ -35,6 +35,13 @@ std::string json_number(double value) {
     return buffer;
 }
 
+/// A double that reads back exactly (offsets of 5e6 m with millimetres need 10+ digits).
+std::string json_number_exact(double value) {
+    char buffer[64];
+    std::snprintf(buffer, sizeof(buffer), "%.17g", value);
+    return buffer;
+}
+
 std::string format_frame(int frame) {
     char buffer[32];
     std::snprintf(buffer, sizeof(buffer), "%06d.bin", frame);
@@ -131,6 +138,10 @@ void validate(const SimulationConfig& config) {
         throw ConfigError("simulation: scene_margin_m = " + std::to_string(config.scene_margin_m) +
                           " must be in [10, 10000]");
     }
+    if (!config.origin_offset_world_m.allFinite() ||
+        config.origin_offset_world_m.cwiseAbs().maxCoeff() > 1e9) {
+        throw ConfigError("simulation: origin_offset_world_m must be finite and within 1e9 m");
+    }
     validate(config.trajectory);
     validate(config.lidar);
     StreetSceneConfig scene = config.scene;
@@ -190,10 +201,15 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
         progress.update(static_cast<std::size_t>(frame + 1), std::to_string(n) + " points");
     }
     progress.finish(std::to_string(summary.total_points) + " points");
-    write_kitti_poses(out_dir / "poses.txt", poses);
+    std::vector<Eigen::Isometry3d> poses_world = poses;
+    for (Eigen::Isometry3d& T_world_sensor : poses_world) {
+        T_world_sensor.translation() += config.origin_offset_world_m;
+    }
+    write_kitti_poses(out_dir / "poses.txt", poses_world);
 
     for (const std::uint8_t o : observed) summary.num_observed_triangles += o;
     scene.mesh.face_observed = std::move(observed);
+    scene.mesh.origin_world_m = config.origin_offset_world_m;
     write_ply_mesh(out_dir / "gt_mesh.ply", scene.mesh);
 
     // Parameters, for people (README.txt) and programs (simulation.json).
@@ -205,6 +221,9 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
          << "  \"generator\": \"shine simulate\",\n"
          << "  \"seed\": " << config.seed << ",\n"
          << "  \"num_frames\": " << config.num_frames << ",\n"
+         << "  \"origin_offset_world_m\": [" << json_number_exact(config.origin_offset_world_m.x())
+         << ", " << json_number_exact(config.origin_offset_world_m.y()) << ", "
+         << json_number_exact(config.origin_offset_world_m.z()) << "],\n"
          << "  \"frames\": {\"points\": \"velodyne/NNNNNN.bin, float32 x y z intensity(0), "
             "sensor frame\", \"poses\": \"poses.txt, T_world_sensor, KITTI 3x4 row-major\", "
             "\"reference\": \"gt_mesh.ply, world frame, face property observed\"},\n"

@@ -6,6 +6,7 @@
 
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/io/vdb_file_check.hpp"
 
 namespace shine {
 namespace {
@@ -61,6 +62,8 @@ TsdfVolume read_tsdf_volume(const std::filesystem::path& path) {
     if (!std::filesystem::is_regular_file(path)) {
         throw IoError("TSDF volume file '" + path.string() + "' does not exist");
     }
+    // A damaged file is reported with its byte offset before OpenVDB reads it.
+    check_vdb_file(path);
     openvdb::GridPtrVecPtr grids;
     openvdb::MetaMap::Ptr meta;
     try {

@@ -57,7 +57,6 @@ TriangleMesh extract_tsdf_mesh(const TsdfVolume& volume, const TsdfMeshConfig& c
     config.validate();
     const auto& table = marching_cubes_table();
     const double voxel_m = volume.config().voxel_size_m;
-    const Eigen::Vector3d origin_world = volume.origin_world_m();
     const openvdb::FloatTree& tsdf_tree = volume.tsdf_grid().tree();
     const openvdb::FloatTree& weight_tree = volume.weight_grid().tree();
 
@@ -103,7 +102,7 @@ TriangleMesh extract_tsdf_mesh(const TsdfVolume& volume, const TsdfMeshConfig& c
                                       key.lower.z() + 0.5);
                     p[axis] += da / (da + db);
                     part.vertex_keys.push_back(key);
-                    part.vertices.push_back((origin_world + p * voxel_m).cast<float>());
+                    part.vertices.push_back((p * voxel_m).cast<float>());
                 }
                 for (const auto& t : cube.triangles) {
                     part.triangles.emplace_back(vertex_of_edge[t[0]], vertex_of_edge[t[1]],
@@ -114,7 +113,10 @@ TriangleMesh extract_tsdf_mesh(const TsdfVolume& volume, const TsdfMeshConfig& c
     });
 
     // Merge in leaf order: a vertex on an edge shared with another leaf's cubes is kept once.
+    // Vertices stay in the volume's map frame (float32 keeps millimetres there, not at UTM
+    // coordinates); the mesh carries the frame's world position.
     TriangleMesh mesh;
+    mesh.origin_world_m = volume.origin_world_m();
     std::size_t num_vertices = 0, num_triangles = 0;
     for (const auto& part : parts) {
         num_vertices += part.vertices.size();

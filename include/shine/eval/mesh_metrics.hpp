@@ -65,7 +65,8 @@ struct MeshMetrics {
     std::size_t ref_observed_points = 0;  ///< ref points from observed faces (completion, recall)
 };
 
-/// Evaluates `pred` against `ref` with the protocol in the file comment. An empty predicted mesh
+/// Evaluates `pred` against `ref` with the protocol in the file comment, in the reference's frame
+/// (pred's vertices are shifted by the difference of the meshes' origin_world_m, in double). An empty predicted mesh
 /// (or one of only degenerate triangles) is valid and scores precision 0, completion =
 /// completion_cap_m, F-score 0. Throws DataError if the reference has no observed surface (empty,
 /// all degenerate, or no face marked observed) or a mesh is malformed (vertex index out of range,

@@ -1,4 +1,4 @@
-// A triangle mesh in world coordinates (metres).
+// A triangle mesh (metres) in a frame translated from the world frame by `origin_world_m`.
 #pragma once
 
 #include <Eigen/Core>
@@ -10,10 +10,17 @@ namespace shine {
 /// Indexed triangle mesh. `face_observed` is optional (empty, or one flag per triangle): the
 /// simulator marks the reference triangles that at least one LiDAR ray hit, and evaluation counts
 /// completion only over those.
+///
+/// Vertices are float32 in a local frame: world position = origin_world_m + vertex. Far-away
+/// (e.g. UTM, 5e6 m) coordinates do not fit a float (its spacing there is 0.5 m), so meshes of
+/// such maps keep the map's origin here (in double) and small vertex coordinates; near the world
+/// origin origin_world_m is zero and the vertices are world coordinates. PLY files carry it as a
+/// header comment (ply.hpp).
 struct TriangleMesh {
-    std::vector<Eigen::Vector3f> vertices;
+    std::vector<Eigen::Vector3f> vertices;  ///< relative to origin_world_m
     std::vector<Eigen::Vector3i> triangles;
     std::vector<std::uint8_t> face_observed;
+    Eigen::Vector3d origin_world_m = Eigen::Vector3d::Zero();  ///< world position of the frame
 
     bool empty() const { return triangles.empty(); }
 };

@@ -4,6 +4,12 @@
 // writes binary little-endian. Every failure names the file, the place (header line, body line for
 // ascii, byte offset for binary) and the problem. Each reader has a parse_* twin that takes the
 // file's bytes and the name to use in messages.
+//
+// Meshes far from the world origin (TriangleMesh::origin_world_m non-zero) keep float32 vertices
+// in their local frame and carry the origin in the header, full double precision:
+//   comment shine_origin_world_m 500000 5000000 0 (world = origin + vertex)
+// Other programs (Blender, MeshLab) ignore the comment and show the mesh in the local frame, where
+// float32 keeps millimetres; ShineVDB's reader restores origin_world_m from it.
 #pragma once
 
 #include <Eigen/Core>
@@ -17,7 +23,8 @@ namespace shine {
 
 /// Reads a triangle mesh (vertex x y z; face vertex_indices or vertex_index, polygons
 /// fan-triangulated, faces with fewer than 3 corners dropped; optional scalar face property
-/// `observed`, copied to every triangle of its polygon as 0/1). Other properties and elements are
+/// `observed`, copied to every triangle of its polygon as 0/1; origin_world_m from the
+/// shine_origin_world_m comment, else zero). Other properties and elements are
 /// skipped. A file without faces gives an empty triangle list. Throws IoError on a missing,
 /// empty, truncated or malformed file, on element counts larger than the file can hold (checked
 /// before allocating), on non-finite vertex coordinates and on out-of-range vertex indices.
@@ -27,7 +34,8 @@ TriangleMesh read_ply_mesh(const std::filesystem::path& path);
 TriangleMesh parse_ply_mesh(std::string_view data, const std::filesystem::path& source);
 
 /// Writes a binary little-endian PLY atomically (temporary file + rename) from one buffer. Writes
-/// the uchar `observed` face property when mesh.face_observed is non-empty. Throws DataError if
+/// the uchar `observed` face property when mesh.face_observed is non-empty, and the
+/// shine_origin_world_m comment when mesh.origin_world_m is not zero. Throws DataError if
 /// face_observed has the wrong size or a triangle refers to a missing vertex.
 void write_ply_mesh(const std::filesystem::path& path, const TriangleMesh& mesh);
 

@@ -9,6 +9,7 @@
 #include "shine/io/preprocess.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/stage_profile.hpp"
 #include "shine/model/neural_sdf.hpp"
 #include "shine/sampling/ray_set.hpp"
 
@@ -23,6 +24,7 @@ struct MappingStats {
     double allocate_seconds = 0.0;  ///< growing the octree
     double normals_seconds = 0.0;   ///< surface normals for the label correction
     double train_seconds = 0.0;
+    double sample_seconds = 0.0;  ///< the part of train_seconds spent drawing samples
     std::size_t iterations = 0;
     double final_bce = 0.0;
     double final_eikonal = 0.0;
@@ -34,8 +36,9 @@ class BatchMapper {
     ~BatchMapper();
 
     /// Preprocesses a scan, moves it to the map frame and allocates the map around it. The first
-    /// scan fixes the map origin (its position rounded to whole kilometres).
-    void add_scan(const Scan& scan);
+    /// scan fixes the map origin (its position rounded to whole kilometres). Returns the seconds
+    /// of its preprocess and allocate stages.
+    StageSeconds add_scan(const Scan& scan);
 
     /// Runs config.batch_iterations() optimisation steps; `on_progress(done, bce)` is called now
     /// and then.

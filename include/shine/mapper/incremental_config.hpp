@@ -26,6 +26,10 @@ struct IncrementalConfig {
     /// Normals of the current scan's endpoints are estimated among the endpoints of the current
     /// scan and the scans just before it, this many in all (1: the current scan alone).
     int normal_window_frames = 10;
+    /// The importance pass (Eq. (4)) uses every n-th ray of the scan: Omega grows by the mean
+    /// gradient norm over the scan's samples (see importance_weights.hpp), which a subsample
+    /// estimates; measured in docs/performance.md.
+    int importance_ray_stride = 8;
 };
 
 }  // namespace shine

@@ -23,6 +23,7 @@
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/stage_profile.hpp"
 #include "shine/model/decoder.hpp"
 #include "shine/model/neural_sdf.hpp"
 #include "shine/optim/importance_weights.hpp"
@@ -39,9 +40,11 @@ struct IncrementalFrameStats {
     double preprocess_seconds = 0.0;
     double allocate_seconds = 0.0;
     double normals_seconds = 0.0;
-    double train_seconds = 0.0;
+    double train_seconds = 0.0;       ///< the scan's optimisation steps, sampling included
     double importance_seconds = 0.0;
     double total_seconds = 0.0;
+    /// The same split by profile stage (preprocess ... importance; load is the caller's).
+    StageSeconds stages;
     double bce = 0.0;             ///< last iteration's mean BCE
     double regularization = 0.0;  ///< last iteration's lambda_r * L_r
 };

@@ -31,6 +31,9 @@ struct IncrementalSequenceMap {
     std::unique_ptr<IncrementalMapper> mapper;
     MapProducts products;
     std::vector<ProgressMesh> progress_meshes;
+    /// Per scan: load, preprocess, allocate, normals, sample, train, importance; bake and mesh of
+    /// the final products once (progress meshes are not counted).
+    StageProfile profile;
 };
 
 /// Maps every scan of `sequence` in incremental mode with `config` (finalized here) and writes the

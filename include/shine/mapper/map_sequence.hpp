@@ -20,6 +20,7 @@
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/stage_profile.hpp"
 #include "shine/model/neural_sdf.hpp"
 
 namespace shine {
@@ -39,7 +40,11 @@ struct MapProducts {
 struct SequenceMap {
     std::unique_ptr<BatchMapper> mapper;
     MapProducts products;
+    StageProfile profile;  ///< per scan: load, preprocess, allocate; the rest once per run
 };
+
+/// The bake and mesh stages of `products` in profile form.
+StageSeconds product_stages(const MapProducts& products);
 
 /// Trains `mapper` behind a Progress line labelled `label` with the running BCE; `iterations` is
 /// the step count the mapper will run (its config's batch_iterations()), for the progress bar.

@@ -32,6 +32,9 @@ struct MapperConfig {
     IncrementalConfig incremental;  ///< `shine map --mode incremental`
     BakeConfig bake;
     MeshConfig mesh;
+    /// Memory budget of the map (features + structure + decoder, MB = 10^6 bytes), checked after
+    /// each scan's allocation (map_budget.hpp); 0 = unlimited. YAML: map.max_map_mb.
+    double max_map_mb = 0.0;
     int threads = 0;          ///< 0: all hardware threads
     std::uint64_t seed = 42;  ///< one seed for features, decoder and sampling
 

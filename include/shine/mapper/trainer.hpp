@@ -2,9 +2,13 @@
 // with Adam on the touched feature rows and on the decoder.
 //
 // A batch is split into fixed chunks; each chunk draws its rays with its own random stream
-// (seeded by seed, iteration and chunk) and computes per-sample gradients in parallel with TBB;
-// the chunks' contributions are then summed in chunk order. The result is therefore identical for
-// a given seed whatever the number of threads.
+// (seeded by seed, iteration and chunk) and computes its samples' gradients in parallel with TBB
+// (batch_gradient.hpp: corner lookups once per sample, the decoder as matrix products over the
+// chunk). The feature gradients are then reduced in parallel over a fixed partition of the
+// feature rows (row mod kRowPartitions): each partition adds its rows' contributions in chunk
+// order and runs the regulariser and Adam on its touched rows, so every row sees the same sums in
+// the same order whatever the number of threads. The decoder's gradient is summed in chunk order.
+// The result is therefore identical for a given seed whatever the number of threads.
 //
 // A float16 feature table is trained in mixed precision: the forward and backward passes read the
 // float16 map, Adam updates a float32 master copy held by the Trainer, and each updated row is
@@ -31,6 +35,13 @@ struct TrainerConfig {
     AdamConfig decoder_adam{};
     std::uint64_t seed = 42;
     int num_chunks = 32;  ///< fixed work split (determinism does not depend on threads)
+};
+
+/// Wall-clock seconds the trainer spent, accumulated over steps (for the stage profile).
+struct TrainerSeconds {
+    double sample = 0.0;      ///< drawing samples along the rays
+    double train = 0.0;       ///< the rest of step(): lookups, decoder, loss, reduction, Adam
+    double importance = 0.0;  ///< accumulate_bce_gradient_norms()
 };
 
 /// Losses of one step, averaged over the valid samples.
@@ -63,9 +74,12 @@ class Trainer {
     /// averaged; no Eikonal term) to `row_sums`, which is resized to num_corners() rows. Returns
     /// the number of samples that fell inside the map. Changes no parameter. Deterministic for
     /// any thread count.
+    /// With `ray_stride` > 1 only the rays ray_begin, ray_begin + ray_stride, ... are used (a
+    /// subsample for the mean over the scan's samples; see IncrementalConfig).
     std::size_t accumulate_bce_gradient_norms(const RaySet& rays, std::size_t ray_begin,
                                               std::size_t ray_end, std::uint64_t pass,
-                                              std::vector<float>& row_sums);
+                                              std::vector<float>& row_sums,
+                                              std::size_t ray_stride = 1);
     /// Seed of the random stream the importance pass samples ray `ray` of pass `pass` with.
     std::uint64_t importance_stream_seed(std::uint64_t pass, std::uint64_t ray) const;
 
@@ -74,15 +88,23 @@ class Trainer {
     const float* feature_params() const;
 
     const TrainerConfig& config() const { return config_; }
+    /// Seconds spent so far (reset with reset_seconds()).
+    const TrainerSeconds& seconds() const { return seconds_; }
+    void reset_seconds() { seconds_ = TrainerSeconds{}; }
     void set_feature_learning_rate(float lr) { feature_adam_.set_learning_rate(lr); }
     void set_decoder_learning_rate(float lr) { decoder_adam_.set_learning_rate(lr); }
     std::size_t optimizer_bytes() const {
         return feature_adam_.memory_bytes() + decoder_adam_.memory_bytes() +
-               (feature_grads_.capacity() + master_features_.capacity()) * sizeof(float);
+               master_features_.capacity() * sizeof(float) +
+               local_index_.capacity() * sizeof(std::int32_t);
     }
+
+    /// Fixed number of row partitions of the parallel gradient reduction.
+    static constexpr int kRowPartitions = 16;
 
   private:
     struct Chunk;
+    struct Partition;
 
     float* mutable_feature_params();
 
@@ -91,12 +113,14 @@ class Trainer {
     SamplingConfig sampling_;
     RowAdam feature_adam_;
     RowAdam decoder_adam_;
-    std::vector<float> feature_grads_;    ///< dense table, zero outside the rows being updated
     std::vector<float> master_features_;  ///< float32 copy of a float16 table (else empty)
-    std::vector<std::uint8_t> touched_;
-    std::vector<std::int32_t> touched_rows_;
+    /// Per feature row, its index in its partition's touched rows during a step, else -1.
+    std::vector<std::int32_t> local_index_;
     std::vector<float> decoder_grads_;
     std::vector<Chunk> chunks_;
+    std::vector<Partition> partitions_;
+    std::uint32_t steps_taken_ = 0;  ///< bounds every feature row's Adam step count
+    TrainerSeconds seconds_;
 };
 
 }  // namespace shine

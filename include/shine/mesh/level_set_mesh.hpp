@@ -14,7 +14,11 @@ struct MeshConfig {
     std::size_t min_component_triangles = 0;  ///< drop connected pieces smaller than this
 };
 
-/// Extracts the surface of `level_set` in world coordinates (vertices as float).
+/// Grid metadata (Vec3d) holding the world position of the frame a ShineVDB level set is in.
+inline constexpr char kOriginMetadataKey[] = "shine_origin_world_m";
+
+/// Extracts the surface of `level_set` in the grid's frame (index-to-world transform, vertices as
+/// float); the mesh's origin_world_m is the grid's kOriginMetadataKey metadata (zero without it).
 TriangleMesh mesh_level_set(const openvdb::FloatGrid& level_set, const MeshConfig& config);
 
 /// Removes connected components (by shared vertices) with fewer than `min_triangles` triangles

@@ -62,8 +62,15 @@ class Decoder {
         return forward(feature, ws);
     }
 
-  private:
+    /// Number of weight layers K (hidden layers + the output layer).
     int num_layers() const { return static_cast<int>(dims_.size()) - 1; }
+    /// Widths n_0 = L, hidden..., n_K = 1.
+    const std::vector<int>& layer_dims() const { return dims_; }
+    /// Start of W_k (n_{k+1} x n_k, row-major) and of b_k in params().
+    std::size_t weight_offset(int k) const { return w_offset_[k]; }
+    std::size_t bias_offset(int k) const { return b_offset_[k]; }
+
+  private:
 
     DecoderConfig config_;
     std::vector<int> dims_;                ///< n_0 = L, hidden..., 1

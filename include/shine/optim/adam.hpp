@@ -45,24 +45,37 @@ class RowAdam {
     void set_learning_rate(float lr) { config_.learning_rate = lr; }
     /// Grows the state to `num_rows` rows (new rows start with zero moments).
     void resize(std::size_t num_rows);
-    /// Updates the listed rows of `params` with the matching rows of `grads`.
+    /// Updates the listed rows of `params` with the matching rows of `grads`. Calls on disjoint
+    /// row lists may run concurrently once reserve_steps() covers every row's next step count.
     void step_rows(float* params, const float* grads, const std::vector<std::int32_t>& rows);
+    /// Precomputes the bias corrections up to step `max_step`, so that step_rows() only reads
+    /// shared state for rows whose step count stays at or below it.
+    void reserve_steps(std::uint32_t max_step) {
+        if (max_step > 0) bias_for_step(max_step);
+    }
+    /// As step_rows(), but the gradient of rows[i] is row_grads[i * row_dim, (i + 1) * row_dim):
+    /// a compact buffer of the listed rows only (the trainer's reduction writes it).
+    void step_listed_rows(float* params, const float* row_grads,
+                          const std::vector<std::int32_t>& rows);
     /// Updates every row (dense use: the decoder as one row).
     void step_all(float* params, const float* grads);
 
     std::size_t num_rows() const { return steps_.size(); }
-    std::vector<float>& first_moments() { return m_; }
-    std::vector<float>& second_moments() { return v_; }
     std::vector<std::uint32_t>& steps() { return steps_; }
     std::size_t memory_bytes() const;
 
   private:
     const AdamBiasCorrection& bias_for_step(std::uint32_t step);
+    /// One row's update (Eigen arrays; see adam.cpp).
+    void update_row(float* param, const float* grad, std::size_t row);
 
     AdamConfig config_;
     std::vector<AdamBiasCorrection> bias_by_step_;  ///< index step-1; pow() once per step value
     int row_dim_ = 1;
-    std::vector<float> m_, v_;
+    /// Per row its first moments then its second moments (2 * row_dim floats): a row's state is
+    /// one contiguous block (one cache line for 8-float features), since rows are visited in
+    /// random order.
+    std::vector<float> moments_;
     std::vector<std::uint32_t> steps_;
 };
 

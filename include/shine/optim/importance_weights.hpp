@@ -68,6 +68,10 @@ class ImportanceWeights {
     /// `grads` and returns lambda_r * L_r over them.
     double add_gradient(const float* params, float* grads,
                         const std::vector<std::int32_t>& rows) const;
+    /// As add_gradient(), but the gradient of rows[i] is row_grads[i * row_dim, (i + 1) * row_dim)
+    /// (a compact buffer of the listed rows, as the trainer's reduction writes it).
+    double add_gradient_listed(const float* params, float* row_grads,
+                               const std::vector<std::int32_t>& rows) const;
 
     /// Eq. (4): Omega_i = min(Omega_i + gradient_norm_sums[i], Omega_m) for every row;
     /// `gradient_norm_sums` has one entry per row (rows beyond it are unchanged). Throws

@@ -56,6 +56,10 @@ struct SimulationConfig {
     StreetSceneConfig scene;       ///< seed, start_x_m and length_m are set by simulate_sequence
     DriveTrajectoryConfig trajectory;
     LidarConfig lidar;
+    /// World position of the simulation's frame: added to every pose, and written as the
+    /// reference mesh's origin_world_m (e.g. (500000, 5000000, 0) for UTM-like coordinates). The
+    /// scans (sensor frame) do not change with it.
+    Eigen::Vector3d origin_offset_world_m = Eigen::Vector3d::Zero();
     bool show_progress = true;
 };
 
@@ -75,9 +79,10 @@ struct SimulationSummary {
 
 /// Builds the street, drives the sensor down it and writes, in the KITTI odometry layout:
 ///   out_dir/velodyne/NNNNNN.bin   float32 x y z intensity(0), sensor frame
-///   out_dir/poses.txt             T_world_sensor per frame, 3x4 row-major
+///   out_dir/poses.txt             T_world_sensor per frame, 3x4 row-major (with the offset)
 ///   out_dir/gt_mesh.ply           the whole scene; face property `observed` = 1 for every
-///                                 triangle hit by at least one ray of any frame
+///                                 triangle hit by at least one ray of any frame; vertices in the
+///                                 simulation's frame, origin_world_m = origin_offset_world_m
 ///   out_dir/simulation.json, README.txt   the parameters
 /// Stale velodyne/NNNNNN.bin files beyond num_frames (from an earlier, longer run) are removed so
 /// that scans and poses stay consistent. Throws ConfigError for invalid configs and IoError when a

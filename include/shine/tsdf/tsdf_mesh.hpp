@@ -11,7 +11,8 @@
 //   - a vertex per crossed lattice edge, shared by the cubes around it.
 // volumeToMesh would mesh a different surface (dual contouring-like vertex placement, no weight
 // mask, polygons wherever an active voxel's sign differs from a neighbour's, including the
-// unobserved background). Vertices are in the world frame (origin_world_m + map frame, as float);
+// unobserved background). Vertices are in the volume's map frame (float) and the mesh's
+// origin_world_m is the volume's, so world = origin_world_m + vertex at full precision;
 // triangles are wound counter-clockwise seen from free space (positive TSDF), so their normals
 // point towards the sensor, as in ShineVDB's other meshes. Differences from VDBFusion: the
 // triangulation inside ambiguous or multi-triangle cubes (see marching_cubes.hpp) and the

@@ -1,0 +1,246 @@
+// Micro-benchmarks of the kernels a training step and a bake spend their time in: corner lookup
+// and trilinear encoding, the decoder (per sample and batched), the batched loss gradient, the
+// sparse Adam step, ray sampling, one full Trainer step (1 and 2 threads) and the bake.
+// Scene: a 40 m x 40 m ground patch with a wall, scanned by one simulated 32-beam sweep, mapped
+// at 0.2 m with the default three levels. See docs/performance.md for how the numbers are used.
+#include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "shine/bake/level_set_bake.hpp"
+#include "shine/mapper/trainer.hpp"
+#include "shine/model/batch_gradient.hpp"
+#include "shine/model/batched_decoder.hpp"
+#include "shine/model/feature_encoding.hpp"
+#include "shine/model/neural_sdf.hpp"
+#include "shine/model/sample_gradient.hpp"
+#include "shine/optim/adam.hpp"
+#include "shine/sampling/ray_sampler.hpp"
+#include "shine/sampling/ray_set.hpp"
+#include "shine/sampling/surface_normals.hpp"
+
+namespace {
+using namespace shine;
+
+/// One sweep of a sensor 1.7 m above a ground plane with a wall at x = 12 m, mapped at 0.2 m.
+struct Scene {
+    NeuralSdf sdf{FeatureOctreeConfig{}, DecoderConfig{}};
+    RaySet rays;
+    std::vector<RaySample> samples;  ///< 6 samples of each of 4096 rays
+
+    Scene() {
+        const Eigen::Vector3f origin(0.0f, 0.0f, 1.7f);
+        std::vector<Eigen::Vector3f> endpoints;
+        for (int beam = 0; beam < 32; ++beam) {
+            const float elevation = (-25.0f + 27.0f * beam / 31.0f) * float(M_PI) / 180.0f;
+            for (int a = 0; a < 900; ++a) {
+                const float azimuth = 2.0f * float(M_PI) * a / 900.0f;
+                const Eigen::Vector3f d(std::cos(elevation) * std::cos(azimuth),
+                                        std::cos(elevation) * std::sin(azimuth),
+                                        std::sin(elevation));
+                float t = 40.0f;
+                if (d.z() < 0.0f) t = std::min(t, 1.7f / -d.z());
+                if (d.x() > 0.0f) t = std::min(t, 12.0f / d.x());
+                if (t < 40.0f) endpoints.push_back(origin + t * d);
+            }
+        }
+        rays.add_scan(origin, endpoints);
+        sdf.octree.allocate_cells(endpoints);
+        rays.set_normals(estimate_ray_normals(rays, NormalConfig{}));
+        Pcg32 rng(7);
+        SamplingConfig sampling;
+        RaySample out[6];
+        for (int i = 0; i < 4096; ++i) {
+            const std::size_t ray = rng.below64(rays.num_rays());
+            sample_ray(rays.origin_of_ray(ray), rays.endpoint(ray), rays.normal(ray), sampling, rng,
+                       out);
+            samples.insert(samples.end(), out, out + 6);
+        }
+    }
+};
+
+Scene& scene() {
+    static Scene instance;
+    return instance;
+}
+
+void BM_EncodeAndGather(benchmark::State& state) {
+    const Scene& s = scene();
+    CellLookup lookup(s.sdf.octree);
+    EncodedPoint encoded;
+    float feature[kMaxFeatureDim];
+    const bool with_gradients = state.range(0) != 0;
+    for (auto _ : state) {
+        for (const RaySample& sample : s.samples) {
+            encode_point(lookup, s.sdf.octree, sample.point_map, with_gradients, encoded);
+            gather_feature(encoded, s.sdf.octree.features().data(), 8, feature);
+            benchmark::DoNotOptimize(feature[0]);
+        }
+    }
+    state.SetItemsProcessed(state.iterations() * s.samples.size());
+}
+BENCHMARK(BM_EncodeAndGather)->Arg(0)->Arg(1)->ArgName("with_gradients");
+
+void BM_DecoderPerSample(benchmark::State& state) {
+    const Decoder decoder{DecoderConfig{}};
+    DecoderWorkspace ws;
+    decoder.prepare(ws);
+    std::vector<float> features(8 * 256);
+    std::mt19937 rng(3);
+    std::normal_distribution<float> normal(0.0f, 0.3f);
+    for (float& f : features) f = normal(rng);
+    std::vector<float> grads(decoder.num_params(), 0.0f);
+    const bool with_params = state.range(0) != 0;
+    float h[8];
+    for (auto _ : state) {
+        for (int b = 0; b < 256; ++b) {
+            benchmark::DoNotOptimize(decoder.forward(features.data() + 8 * b, ws));
+            decoder.input_gradient(ws, h);
+            if (with_params) {
+                decoder.accumulate_param_gradient(ws, 0.1f, grads.data());
+                decoder.accumulate_input_gradient_param_gradient(ws, h, grads.data());
+            }
+        }
+        benchmark::DoNotOptimize(h[0]);
+    }
+    state.SetItemsProcessed(state.iterations() * 256);
+}
+BENCHMARK(BM_DecoderPerSample)->Arg(0)->Arg(1)->ArgName("param_gradients");
+
+void BM_DecoderBatched(benchmark::State& state) {
+    const Decoder decoder{DecoderConfig{}};
+    DecoderBatch batch;
+    prepare_batch(decoder, 256, batch);
+    std::mt19937 rng(3);
+    std::normal_distribution<float> normal(0.0f, 0.3f);
+    for (Eigen::Index i = 0; i < batch.features().size(); ++i)
+        batch.features().data()[i] = normal(rng);
+    const Eigen::RowVectorXf grad_output = Eigen::RowVectorXf::Constant(256, 0.1f);
+    std::vector<float> grads(decoder.num_params(), 0.0f);
+    const bool with_params = state.range(0) != 0;
+    for (auto _ : state) {
+        forward_batch(decoder, batch);
+        input_gradient_batch(decoder, batch);
+        if (with_params) {
+            const Eigen::MatrixXf grad_h = batch.input_gradient;
+            accumulate_param_gradient_batch(decoder, batch, grad_output, &grad_h, grads.data());
+        }
+        benchmark::DoNotOptimize(batch.input_gradient.data());
+    }
+    state.SetItemsProcessed(state.iterations() * 256);
+}
+BENCHMARK(BM_DecoderBatched)->Arg(0)->Arg(1)->ArgName("param_gradients");
+
+void BM_SampleLossGradient(benchmark::State& state) {
+    const Scene& s = scene();
+    CellLookup lookup(s.sdf.octree);
+    DecoderWorkspace ws;
+    s.sdf.decoder.prepare(ws);
+    EncodedPoint encoded;
+    SampleGradient gradient;
+    std::vector<float> grads(s.sdf.decoder.num_params(), 0.0f);
+    float* decoder_grads = state.range(0) ? grads.data() : nullptr;
+    for (auto _ : state) {
+        for (const RaySample& sample : s.samples) {
+            sample_loss_gradient(s.sdf, lookup, ws, sample, SampleLossConfig{}, encoded, gradient,
+                                 decoder_grads);
+        }
+        benchmark::DoNotOptimize(gradient.h[0]);
+    }
+    state.SetItemsProcessed(state.iterations() * s.samples.size());
+}
+BENCHMARK(BM_SampleLossGradient)->Arg(0)->Arg(1)->ArgName("train_decoder");
+
+void BM_BatchLossGradient(benchmark::State& state) {
+    const Scene& s = scene();
+    CellLookup lookup(s.sdf.octree);
+    BatchGradient batch;
+    std::vector<float> grads(s.sdf.decoder.num_params(), 0.0f);
+    float* decoder_grads = state.range(0) ? grads.data() : nullptr;
+    constexpr std::size_t kChunk = 128;  // about a trainer chunk
+    for (auto _ : state) {
+        for (std::size_t i = 0; i + kChunk <= s.samples.size(); i += kChunk) {
+            batch_loss_gradient(s.sdf, lookup, s.samples.data() + i, kChunk, SampleLossConfig{},
+                                batch, decoder_grads);
+        }
+        benchmark::DoNotOptimize(batch.bce_sum);
+    }
+    state.SetItemsProcessed(state.iterations() * s.samples.size());
+}
+BENCHMARK(BM_BatchLossGradient)->Arg(0)->Arg(1)->ArgName("train_decoder");
+
+void BM_AdamStepRows(benchmark::State& state) {
+    constexpr std::size_t kRows = 400000, kTouched = 30000;
+    RowAdam adam(AdamConfig{}, 8);
+    adam.resize(kRows);
+    std::vector<float> params(kRows * 8, 0.1f), grads(kRows * 8, 0.01f);
+    std::vector<std::int32_t> rows;
+    std::mt19937 rng(1);
+    for (std::size_t i = 0; i < kTouched; ++i) rows.push_back(std::int32_t(rng() % kRows));
+    adam.reserve_steps(1u << 20);
+    for (auto _ : state) {
+        adam.step_rows(params.data(), grads.data(), rows);
+        benchmark::DoNotOptimize(params.data());
+    }
+    state.SetItemsProcessed(state.iterations() * kTouched);
+}
+BENCHMARK(BM_AdamStepRows);
+
+void BM_SampleRay(benchmark::State& state) {
+    const Scene& s = scene();
+    Pcg32 rng(3);
+    SamplingConfig sampling;
+    RaySample out[6];
+    std::size_t ray = 0;
+    for (auto _ : state) {
+        sample_ray(s.rays.origin_of_ray(ray), s.rays.endpoint(ray), s.rays.normal(ray), sampling,
+                   rng, out);
+        benchmark::DoNotOptimize(out[0].sdf_label_m);
+        if (++ray == s.rays.num_rays()) ray = 0;
+    }
+    state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_SampleRay);
+
+/// One Trainer step of 4096 samples (incremental mode's: decoder frozen) with 1 or 2 threads.
+void BM_TrainerStep(benchmark::State& state) {
+    Scene& s = scene();
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                              static_cast<std::size_t>(state.range(0)));
+    TrainerConfig config;
+    config.train_decoder = state.range(1) != 0;
+    const Decoder saved_decoder = s.sdf.decoder;
+    const std::vector<float> saved_features = s.sdf.octree.features().to_floats();
+    Trainer trainer(s.sdf, config, SamplingConfig{});
+    std::uint64_t iteration = 0;
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(trainer.step(s.rays, 0, s.rays.num_rays(), iteration++).bce);
+    }
+    s.sdf.decoder = saved_decoder;
+    std::copy(saved_features.begin(), saved_features.end(), s.sdf.octree.features().floats());
+    state.SetItemsProcessed(state.iterations() * config.batch_size);
+}
+BENCHMARK(BM_TrainerStep)
+    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->ArgNames({"threads", "train_decoder"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+void BM_Bake(benchmark::State& state) {
+    const Scene& s = scene();
+    BakeStats stats;
+    for (auto _ : state) {
+        auto grid = bake_level_set(s.sdf, BakeConfig{}, &stats);
+        benchmark::DoNotOptimize(grid.get());
+    }
+    state.SetItemsProcessed(state.iterations() * stats.evaluated_voxels);
+}
+BENCHMARK(BM_Bake)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,149 @@
+#include "shine/model/batch_gradient.hpp"
+
+#include "shine/model/sdf_loss.hpp"
+
+namespace shine {
+namespace {
+
+template <typename T>
+void gather_batch(BatchGradient& out, const T* table, int dim, Eigen::MatrixXf& X) {
+    constexpr std::size_t kAhead = 2;
+    const int stride = out.corner_stride;
+    const std::size_t n = out.num_valid();
+    for (std::size_t b = 0; b < n; ++b) {
+        if (b + kAhead < n) {
+            const std::int32_t* rows = out.rows.data() + (b + kAhead) * stride;
+            for (int k = 0; k < out.corners[b + kAhead]; ++k) {
+                __builtin_prefetch(table + std::size_t(rows[k]) * dim);
+            }
+        }
+        const std::int32_t* rows = out.rows.data() + b * stride;
+        const float* weights = out.coefficients.data() + b * stride;
+        float* feature = X.col(Eigen::Index(b)).data();
+        std::fill(feature, feature + dim, 0.0f);
+        for (int k = 0; k < out.corners[b]; ++k) {
+            const T* f = table + std::size_t(rows[k]) * dim;
+            for (int l = 0; l < dim; ++l) feature[l] += weights[k] * static_cast<float>(f[l]);
+        }
+        if (!out.eikonal[b]) continue;
+        // J = dF/dx, dim x 3 row-major (as feature_jacobian()).
+        float* jacobian = out.jacobian.data() + b * 3 * dim;
+        std::fill(jacobian, jacobian + 3 * dim, 0.0f);
+        const float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
+        for (int k = 0; k < out.corners[b]; ++k) {
+            const T* f = table + std::size_t(rows[k]) * dim;
+            for (int l = 0; l < dim; ++l) {
+                const float fl = static_cast<float>(f[l]);
+                jacobian[l * 3 + 0] += fl * dw[k * 3 + 0];
+                jacobian[l * 3 + 1] += fl * dw[k * 3 + 1];
+                jacobian[l * 3 + 2] += fl * dw[k * 3 + 2];
+            }
+        }
+    }
+}
+
+}  // namespace
+
+void batch_loss_gradient(const NeuralSdf& sdf, CellLookup& lookup, const RaySample* samples,
+                         std::size_t count, const SampleLossConfig& config, BatchGradient& out,
+                         float* decoder_grads) {
+    const int dim = sdf.octree.feature_dim();
+    const int stride = 8 * sdf.octree.num_levels();
+    const FeatureTableView features = sdf.octree.features().data();
+    out.corner_stride = stride;
+    out.sample.clear();
+    out.corners.clear();
+    out.eikonal.clear();
+    out.bce_sum = out.eikonal_sum = 0.0;
+    out.rows.resize(count * stride);
+    out.coefficients.resize(count * stride);
+    out.weight_gradients_per_m.resize(count * stride * 3);
+    out.jacobian.resize(count * 3 * dim);
+    out.sdf_m.resize(count);
+    prepare_batch(sdf.decoder, static_cast<int>(count), out.decoder);
+    Eigen::MatrixXf& X = out.decoder.features();
+
+    // 1. Corner lookups once per sample: rows, weights (kept in coefficients until the loss
+    // gradient scales them) and, for Eikonal samples, the weights' spatial gradients.
+    EncodedPoint encoded;
+    for (std::size_t i = 0; i < count; ++i) {
+        const RaySample& sample = samples[i];
+        const bool eikonal = config.eikonal_weight > 0.0f && sample.kind == SampleKind::kSurface;
+        encode_point(lookup, sdf.octree, sample.point_map, eikonal, encoded);
+        if (!encoded.valid()) continue;
+        const std::size_t b = out.sample.size();
+        out.sample.push_back(static_cast<std::uint32_t>(i));
+        out.corners.push_back(static_cast<std::uint8_t>(encoded.num_corners));
+        out.eikonal.push_back(eikonal ? 1 : 0);
+        std::copy(encoded.rows, encoded.rows + encoded.num_corners, out.rows.data() + b * stride);
+        std::copy(encoded.weights, encoded.weights + encoded.num_corners,
+                  out.coefficients.data() + b * stride);
+        if (eikonal) {
+            float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
+            for (int k = 0; k < encoded.num_corners; ++k) {
+                for (int a = 0; a < 3; ++a) dw[k * 3 + a] = encoded.weight_gradients_per_m[k][a];
+            }
+        }
+    }
+    // 2. The features F (and the Jacobian dF/dx of Eikonal samples) from the corner rows, which
+    // sit at random places of the table: the rows of a sample a few ahead are prefetched.
+    if (features.f16) {
+        gather_batch(out, features.f16, dim, X);
+    } else {
+        gather_batch(out, features.f32, dim, X);
+    }
+    const Eigen::Index B = static_cast<Eigen::Index>(out.sample.size());
+    if (B == 0) return;
+    for (auto& a : out.decoder.activations) a.conservativeResize(Eigen::NoChange, B);
+    out.decoder.input_gradient.resize(Eigen::NoChange, B);
+
+    // 2. The decoder on the whole batch.
+    forward_batch(sdf.decoder, out.decoder);
+    input_gradient_batch(sdf.decoder, out.decoder);
+
+    // 3. Per sample: Eq. (1) dL_bce/dtheta_c = (w_c dL/df) h; Eq. (3) for surface samples.
+    const bool any_eikonal = config.eikonal_weight > 0.0f;
+    out.grad_output.resize(B);
+    if (decoder_grads && any_eikonal) out.grad_input_gradient.setZero(dim, B);
+    const Eigen::MatrixXf& f = out.decoder.output();
+    for (Eigen::Index b = 0; b < B; ++b) {
+        const RaySample& sample = samples[out.sample[b]];
+        const float sdf_m = f(0, b);
+        out.sdf_m[b] = sdf_m;
+        const LossAndGradient bce = sigmoid_bce(sdf_m, sample.sdf_label_m, config.sigma_m);
+        out.bce_sum += bce.loss;
+        out.grad_output[b] = bce.gradient;
+        float* coefficients = out.coefficients.data() + b * stride;
+        const int corners = out.corners[b];
+        for (int k = 0; k < corners; ++k) coefficients[k] *= bce.gradient;
+        if (!out.eikonal[b]) continue;
+        const float* h = out.h(b);
+        const float* jacobian = out.jacobian.data() + b * 3 * dim;
+        float g[3] = {0.0f, 0.0f, 0.0f};
+        for (int l = 0; l < dim; ++l) {
+            for (int a = 0; a < 3; ++a) g[a] += jacobian[l * 3 + a] * h[l];
+        }
+        float de_dg[3];
+        out.eikonal_sum += eikonal_loss(g, de_dg);
+        for (int a = 0; a < 3; ++a) de_dg[a] *= config.eikonal_weight;
+        const float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
+        for (int k = 0; k < corners; ++k) {
+            coefficients[k] +=
+                dw[k * 3 + 0] * de_dg[0] + dw[k * 3 + 1] * de_dg[1] + dw[k * 3 + 2] * de_dg[2];
+        }
+        if (decoder_grads) {
+            float* de_dh = out.grad_input_gradient.col(b).data();
+            for (int l = 0; l < dim; ++l) {
+                de_dh[l] = jacobian[l * 3 + 0] * de_dg[0] + jacobian[l * 3 + 1] * de_dg[1] +
+                           jacobian[l * 3 + 2] * de_dg[2];
+            }
+        }
+    }
+    if (decoder_grads) {
+        accumulate_param_gradient_batch(sdf.decoder, out.decoder, out.grad_output,
+                                        any_eikonal ? &out.grad_input_gradient : nullptr,
+                                        decoder_grads);
+    }
+}
+
+}  // namespace shine

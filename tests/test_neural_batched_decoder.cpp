@@ -1,0 +1,135 @@
+// The batched kernels against the per-sample reference: the batched decoder
+// (batched_decoder.hpp) against Decoder's per-sample calls, and batch_loss_gradient
+// (batch_gradient.hpp) against sample_loss_gradient, to float tolerance.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "shine/model/batch_gradient.hpp"
+#include "shine/model/batched_decoder.hpp"
+#include "shine/model/decoder.hpp"
+#include "shine/model/sample_gradient.hpp"
+
+using namespace shine;
+
+namespace {
+// Batched and per-sample sums differ only in the order of float additions over O(1) values.
+constexpr float kAbsTol = 1e-5f;
+constexpr float kRelTol = 1e-4f;
+
+void expect_float_close(float batched, float reference, const std::string& what) {
+    EXPECT_NEAR(batched, reference, kAbsTol + kRelTol * std::abs(reference)) << what;
+}
+}  // namespace
+
+TEST(BatchedDecoder, EqualsPerSampleForwardInputAndParameterGradients) {
+    const Decoder decoder(DecoderConfig{8, {32, 32}, 19});
+    constexpr int kBatch = 37;
+    std::mt19937 rng(5);
+    std::normal_distribution<float> normal(0.0f, 0.5f);
+    DecoderBatch batch;
+    prepare_batch(decoder, kBatch, batch);
+    Eigen::RowVectorXf grad_output(kBatch);
+    Eigen::MatrixXf grad_h(8, kBatch);
+    for (int b = 0; b < kBatch; ++b) {
+        for (int l = 0; l < 8; ++l) batch.features()(l, b) = normal(rng);
+        grad_output[b] = normal(rng);
+        for (int l = 0; l < 8; ++l) grad_h(l, b) = normal(rng);
+    }
+    forward_batch(decoder, batch);
+    input_gradient_batch(decoder, batch);
+    std::vector<float> batched(decoder.num_params(), 0.0f);
+    accumulate_param_gradient_batch(decoder, batch, grad_output, &grad_h, batched.data());
+    std::vector<float> bce_only(decoder.num_params(), 0.0f);
+    accumulate_param_gradient_batch(decoder, batch, grad_output, nullptr, bce_only.data());
+
+    std::vector<float> reference(decoder.num_params(), 0.0f);
+    std::vector<float> reference_bce(decoder.num_params(), 0.0f);
+    DecoderWorkspace ws;
+    decoder.prepare(ws);
+    int active_masks = 0;
+    for (int b = 0; b < kBatch; ++b) {
+        const float f = decoder.forward(batch.features().col(b).data(), ws);
+        expect_float_close(batch.output()(0, b), f, "f of sample " + std::to_string(b));
+        float h[8];
+        decoder.input_gradient(ws, h);
+        for (int l = 0; l < 8; ++l) {
+            expect_float_close(batch.input_gradient(l, b), h[l],
+                               "h of sample " + std::to_string(b));
+            active_masks += h[l] != 0.0f;
+        }
+        decoder.accumulate_param_gradient(ws, grad_output[b], reference.data());
+        decoder.accumulate_param_gradient(ws, grad_output[b], reference_bce.data());
+        decoder.accumulate_input_gradient_param_gradient(ws, grad_h.col(b).data(),
+                                                         reference.data());
+    }
+    EXPECT_GT(active_masks, 8 * kBatch / 2);
+    for (std::size_t i = 0; i < reference.size(); ++i) {
+        expect_float_close(batched[i], reference[i], "param " + std::to_string(i));
+        expect_float_close(bce_only[i], reference_bce[i], "param (BCE only) " + std::to_string(i));
+    }
+}
+
+TEST(BatchGradient, EqualsPerSampleLossGradientIncludingSamplesOutsideTheMap) {
+    FeatureOctreeConfig octree_config;
+    octree_config.leaf_size_m = 0.25;
+    octree_config.num_levels = 3;
+    octree_config.init_std = 0.3f;
+    NeuralSdf sdf(octree_config, DecoderConfig{8, {32, 32}, 11});
+    std::vector<Eigen::Vector3f> points;
+    for (int i = 0; i < 20; ++i) points.emplace_back(0.1f * i, 0.05f * i, 0.3f);
+    sdf.octree.allocate_cells(points);
+
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<float> coordinate(-0.5f, 2.5f);
+    std::uniform_real_distribution<float> label(-0.2f, 0.2f);
+    std::vector<RaySample> samples;
+    for (int i = 0; i < 200; ++i) {
+        samples.push_back({Eigen::Vector3f(coordinate(rng), 0.4f * coordinate(rng), 0.3f),
+                           label(rng), i % 2 ? SampleKind::kSurface : SampleKind::kFreeSpace});
+    }
+    const SampleLossConfig config{0.05f, 0.1f};
+    CellLookup lookup(sdf.octree);
+    BatchGradient batch;
+    std::vector<float> batched_decoder(sdf.decoder.num_params(), 0.0f);
+    batch_loss_gradient(sdf, lookup, samples.data(), samples.size(), config, batch,
+                        batched_decoder.data());
+
+    std::vector<float> reference_decoder(sdf.decoder.num_params(), 0.0f);
+    DecoderWorkspace ws;
+    EncodedPoint encoded;
+    SampleGradient gradient;
+    std::size_t b = 0;
+    double bce_sum = 0.0, eikonal_sum = 0.0;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        if (!sample_loss_gradient(sdf, lookup, ws, samples[i], config, encoded, gradient,
+                                  reference_decoder.data())) {
+            continue;
+        }
+        ASSERT_LT(b, batch.num_valid());
+        ASSERT_EQ(batch.sample[b], i);
+        ASSERT_EQ(batch.corners[b], encoded.num_corners);
+        bce_sum += gradient.bce;
+        eikonal_sum += gradient.eikonal;
+        expect_float_close(batch.sdf_m[b], gradient.sdf_m, "f");
+        for (int l = 0; l < 8; ++l) expect_float_close(batch.h(b)[l], gradient.h[l], "h");
+        for (int k = 0; k < encoded.num_corners; ++k) {
+            EXPECT_EQ(batch.rows[b * batch.corner_stride + k], encoded.rows[k]);
+            expect_float_close(batch.coefficients[b * batch.corner_stride + k],
+                               gradient.coefficients[k], "coefficient");
+        }
+        ++b;
+    }
+    EXPECT_EQ(b, batch.num_valid());
+    EXPECT_GT(b, 40u);
+    EXPECT_LT(b, samples.size());  // some samples fall outside the map
+    EXPECT_NEAR(batch.bce_sum, bce_sum, 1e-4 * bce_sum);
+    EXPECT_NEAR(batch.eikonal_sum, eikonal_sum, 1e-4 * eikonal_sum + 1e-6);
+    EXPECT_GT(eikonal_sum, 0.0);
+    for (std::size_t i = 0; i < reference_decoder.size(); ++i) {
+        EXPECT_NEAR(batched_decoder[i], reference_decoder[i],
+                    1e-4f + 1e-4f * std::abs(reference_decoder[i]))
+            << "decoder param " << i;
+    }
+}

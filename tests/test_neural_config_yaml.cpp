@@ -1,0 +1,44 @@
+// Configuration YAML whose values or keys are lists or mappings where a single value belongs:
+// each must be a ConfigError naming the key, not a yaml-cpp exception (found by fuzz_config_yaml,
+// fuzz/corpus/fuzz_config_yaml/regression_mapping_as_value.yaml).
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "shine/core/error.hpp"
+#include "shine/mapper/mapper_config.hpp"
+
+namespace shine {
+namespace {
+
+void expect_config_error(const std::string& yaml, const std::string& fragment) {
+    MapperConfig config;
+    try {
+        parse_config_yaml(yaml, "test.yaml", config);
+        ADD_FAILURE() << "accepted:\n" << yaml;
+    } catch (const ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
+}
+
+TEST(ConfigYaml, NonScalarValuesAndKeysAreConfigErrors) {
+    expect_config_error("preprocess:\n  invalid_points: {leaf_size_m: 0.1}\n",
+                        "preprocess.invalid_points");
+    expect_config_error("map:\n  feature_precision: [float16]\n", "map.feature_precision");
+    expect_config_error("map:\n  {a: 1}: 2\n", "section 'map'");
+    expect_config_error("[map]: {leaf_size_m: 0.1}\n", "section name");
+}
+
+TEST(ConfigYaml, MaxMapMbIsReadAndChecked) {
+    MapperConfig config;
+    parse_config_yaml("map:\n  max_map_mb: 12.5\n", "test.yaml", config);
+    EXPECT_EQ(config.max_map_mb, 12.5);
+    expect_config_error("map:\n  max_map_mb: -1\n", "map.max_map_mb");
+    // It survives the round trip through the YAML stored in map.vdb.
+    MapperConfig back;
+    parse_config_yaml(config_to_yaml(config), "stored", back);
+    EXPECT_EQ(back.max_map_mb, 12.5);
+}
+
+}  // namespace
+}  // namespace shine
