@@ -10,7 +10,10 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_test_support.hpp"
+
 namespace fs = std::filesystem;
+using namespace shine::cli_test;
 
 namespace {
 
@@ -18,37 +21,16 @@ namespace {
 // 0.907 at 10 cm; the bound leaves room for other machines' floating-point differences.
 constexpr double kMinFscore = 0.85;
 
-const fs::path kRoot = fs::path(SHINE_TEST_TMP_DIR) / "cli";
+fs::path test_dir() { return test_dir_of("cli"); }
 
-struct Result {
-    int exit_code;
-    std::string output;
-};
-
-// ctest runs each test in its own process, in parallel: every test works in its own directory.
-fs::path test_dir() {
-    const fs::path d = kRoot / ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    fs::create_directories(d);
-    return d;
-}
-
-Result run(const std::string& args) {
-    const fs::path log = test_dir() / "last_command.log";
-    const std::string command =
-        std::string(SHINE_CLI_PATH) + " " + args + " > " + log.string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    std::ifstream in(log);
-    std::stringstream text;
-    text << in.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
+CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
 
 // A small simulated street (made once per test process).
 const fs::path& street() {
     static const fs::path dir = [] {
         const fs::path d = test_dir() / "street";
         fs::remove_all(d);
-        const Result r = run("simulate -o " + d.string() + " --frames 6 --seed 3 --no-progress");
+        const CliResult r = run("simulate -o " + d.string() + " --frames 6 --seed 3 --no-progress");
         EXPECT_EQ(r.exit_code, 0) << r.output;
         return d;
     }();
@@ -77,8 +59,8 @@ void expect_no_outputs(const fs::path& out) {
 TEST(EndToEnd, SimulatedStreetMapsToAnAccurateMesh) {
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r = run("map " + street().string() + " -o " + out.string() +
-                         " --iterations 1500 --threads 2 -q");
+    const CliResult r = run("map " + street().string() + " -o " + out.string() +
+                            " --iterations 1500 --threads 2 -q");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     for (const char* f : {"map.vdb", "surface.vdb", "mesh.ply", "stats.json"}) {
         EXPECT_TRUE(fs::exists(out / f)) << f;
@@ -92,11 +74,11 @@ TEST(EndToEnd, SimulatedStreetMapsToAnAccurateMesh) {
     EXPECT_EQ(stats.at("frames").get<int>(), 6);
 
     // The saved map re-bakes and re-meshes at another resolution.
-    const Result m = run("mesh " + (out / "map.vdb").string() + " -o " +
-                         (out / "coarse.ply").string() + " --voxel-size-m 0.2");
+    const CliResult m = run("mesh " + (out / "map.vdb").string() + " -o " +
+                            (out / "coarse.ply").string() + " --voxel-size-m 0.2");
     ASSERT_EQ(m.exit_code, 0) << m.output;
-    const Result e = run("eval --pred " + (out / "coarse.ply").string() + " --ref " +
-                         (street() / "gt_mesh.ply").string() + " --json");
+    const CliResult e = run("eval --pred " + (out / "coarse.ply").string() + " --ref " +
+                            (street() / "gt_mesh.ply").string() + " --json");
     ASSERT_EQ(e.exit_code, 0) << e.output;
     EXPECT_GT(nlohmann::json::parse(e.output).at("fscore").get<double>(), 0.5);
 }
@@ -104,7 +86,8 @@ TEST(EndToEnd, SimulatedStreetMapsToAnAccurateMesh) {
 TEST(BadInput, MissingDirectory) {
     const fs::path out = test_dir() / "out_missing";
     fs::remove_all(out);
-    const Result r = run("map " + (test_dir() / "no_such_dir").string() + " -o " + out.string() + " -q");
+    const CliResult r =
+        run("map " + (test_dir() / "no_such_dir").string() + " -o " + out.string() + " -q");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("no_such_dir"), std::string::npos) << r.output;
     expect_no_outputs(out);
@@ -116,7 +99,7 @@ TEST(BadInput, BinSizeNotMultipleOf16) {
     fs::resize_file(bin, fs::file_size(bin) - 3);
     const fs::path out = test_dir() / "out_bad_bin";
     fs::remove_all(out);
-    const Result r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
+    const CliResult r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("000002.bin"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("16"), std::string::npos) << r.output;
@@ -134,7 +117,7 @@ TEST(BadInput, FewerPosesThanScans) {
     }
     const fs::path out = test_dir() / "out_few_poses";
     fs::remove_all(out);
-    const Result r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
+    const CliResult r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("poses.txt"), std::string::npos) << r.output;
     expect_no_outputs(out);
@@ -172,7 +155,7 @@ TEST(BadInput, NonFinitePointsAreDroppedAndCounted) {
     std::ofstream(data / "velodyne" / "000004.bin", std::ios::binary | std::ios::trunc).close();
     const fs::path out = test_dir() / "out_nan";
     fs::remove_all(out);
-    const Result r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
+    const CliResult r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     std::ifstream in(out / "stats.json");
     const nlohmann::json stats = nlohmann::json::parse(in);
@@ -189,8 +172,8 @@ TEST(BadInput, NonFinitePointsFailUnderTheErrorPolicy) {
     std::ofstream(config) << "preprocess:\n  invalid_points: error\n";
     const fs::path out = test_dir() / "out_nan_error";
     fs::remove_all(out);
-    const Result r = run("map " + data.string() + " -o " + out.string() + " -c " + config.string() +
-                         " -q --iterations 10");
+    const CliResult r = run("map " + data.string() + " -o " + out.string() + " -c " +
+                            config.string() + " -q --iterations 10");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("000001.bin"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("point 100"), std::string::npos) << r.output;
@@ -210,7 +193,7 @@ TEST(BadInput, SequenceWithoutAnyValidPoint) {
     }
     const fs::path out = test_dir() / "out_no_valid_points";
     fs::remove_all(out);
-    const Result r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
+    const CliResult r = run("map " + data.string() + " -o " + out.string() + " -q --iterations 10");
     EXPECT_NE(r.exit_code, 0);
     EXPECT_EQ(r.output.find("internal error"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("no points left"), std::string::npos) << r.output;
@@ -222,12 +205,12 @@ TEST(BadInput, UnreadableVdb) {
     std::ofstream(garbage) << "not an OpenVDB file at all";
     const fs::path mesh = test_dir() / "garbage_mesh.ply";
     fs::remove(mesh);
-    const Result r = run("mesh " + garbage.string() + " -o " + mesh.string());
+    const CliResult r = run("mesh " + garbage.string() + " -o " + mesh.string());
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("garbage.vdb"), std::string::npos) << r.output;
     EXPECT_EQ(r.output.find("internal error"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(mesh));
-    const Result b = run("bake " + garbage.string() + " -o " + (test_dir() / "g.vdb").string());
+    const CliResult b = run("bake " + garbage.string() + " -o " + (test_dir() / "g.vdb").string());
     EXPECT_NE(b.exit_code, 0);
     EXPECT_NE(b.output.find("garbage.vdb"), std::string::npos) << b.output;
 }

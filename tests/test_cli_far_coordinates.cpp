@@ -11,11 +11,13 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_test_support.hpp"
 #include "shine/bake/level_set_file.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/map/map_file.hpp"
 
 namespace fs = std::filesystem;
+using namespace shine::cli_test;
 
 namespace {
 
@@ -25,34 +27,9 @@ constexpr double kMaxFscoreGap = 0.005;  // 0.5 F-score points
 constexpr double kMinFscore = 0.85;
 const Eigen::Vector3d kFarOrigin(500000.0, 5000000.0, 0.0);
 
-const fs::path kRoot = fs::path(SHINE_TEST_TMP_DIR) / "cli_far";
+fs::path test_dir() { return test_dir_of("cli_far"); }
 
-struct Result {
-    int exit_code;
-    std::string output;
-};
-
-fs::path test_dir() {
-    const fs::path d = kRoot / ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    fs::create_directories(d);
-    return d;
-}
-
-Result run(const std::string& args) {
-    const fs::path log = test_dir() / "last_command.log";
-    const std::string command =
-        std::string(SHINE_CLI_PATH) + " " + args + " > " + log.string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    std::ifstream in(log);
-    std::stringstream text;
-    text << in.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
-
-nlohmann::json read_json(const fs::path& path) {
-    std::ifstream in(path);
-    return nlohmann::json::parse(in);
-}
+CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
 
 /// Simulates the street (moved by `offset`, "" for none) and maps it; returns the output dir.
 fs::path simulate_and_map(const std::string& name, const std::string& offset) {
@@ -60,8 +37,8 @@ fs::path simulate_and_map(const std::string& name, const std::string& offset) {
     const fs::path out = test_dir() / ("out_" + name);
     fs::remove_all(street);
     fs::remove_all(out);
-    Result r = run("simulate -o " + street.string() + " --frames 6 --seed 3 --no-progress" +
-                   (offset.empty() ? "" : " --origin-offset-m " + offset));
+    CliResult r = run("simulate -o " + street.string() + " --frames 6 --seed 3 --no-progress" +
+                      (offset.empty() ? "" : " --origin-offset-m " + offset));
     EXPECT_EQ(r.exit_code, 0) << r.output;
     r = run("map " + street.string() + " -o " + out.string() + " --iterations 1500 --threads 2 -q");
     EXPECT_EQ(r.exit_code, 0) << r.output;
@@ -98,13 +75,13 @@ TEST(FarCoordinates, UtmOffsetMapsAsAccuratelyAsTheOrigin) {
     EXPECT_EQ(gt.origin_world_m, kFarOrigin);
 
     // `shine eval` reads the offsets and scores the far mesh as `shine map` did.
-    const Result e = run("eval --pred " + (far_out / "mesh.ply").string() + " --ref " +
-                         (test_dir() / "street_far" / "gt_mesh.ply").string() + " --json");
+    const CliResult e = run("eval --pred " + (far_out / "mesh.ply").string() + " --ref " +
+                            (test_dir() / "street_far" / "gt_mesh.ply").string() + " --json");
     ASSERT_EQ(e.exit_code, 0) << e.output;
     EXPECT_NEAR(nlohmann::json::parse(e.output).at("fscore").get<double>(), far_fscore, 1e-9);
     // Against the reference near the origin, the far mesh is 5000 km away: F-score 0.
-    const Result cross = run("eval --pred " + (far_out / "mesh.ply").string() + " --ref " +
-                             (test_dir() / "street_near" / "gt_mesh.ply").string() + " --json");
+    const CliResult cross = run("eval --pred " + (far_out / "mesh.ply").string() + " --ref " +
+                                (test_dir() / "street_near" / "gt_mesh.ply").string() + " --json");
     ASSERT_EQ(cross.exit_code, 0) << cross.output;
     EXPECT_EQ(nlohmann::json::parse(cross.output).at("fscore").get<double>(), 0.0);
 }

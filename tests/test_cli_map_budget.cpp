@@ -9,46 +9,29 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_test_support.hpp"
+
 namespace fs = std::filesystem;
+using namespace shine::cli_test;
 
 namespace {
 
-const fs::path kRoot = fs::path(SHINE_TEST_TMP_DIR) / "cli_map_budget";
+fs::path test_dir() { return test_dir_of("cli_map_budget"); }
 
-struct Result {
-    int exit_code;
-    std::string output;
-};
-
-fs::path test_dir() {
-    const fs::path d = kRoot / ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    fs::create_directories(d);
-    return d;
-}
-
-Result run(const std::string& args) {
-    const fs::path log = test_dir() / "last_command.log";
-    const std::string command =
-        std::string(SHINE_CLI_PATH) + " " + args + " > " + log.string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    std::ifstream in(log);
-    std::stringstream text;
-    text << in.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
+CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
 
 const fs::path& street() {
     static const fs::path dir = [] {
         const fs::path d = test_dir() / "street";
         fs::remove_all(d);
-        const Result r = run("simulate -o " + d.string() + " --frames 3 --seed 3 --no-progress");
+        const CliResult r = run("simulate -o " + d.string() + " --frames 3 --seed 3 --no-progress");
         EXPECT_EQ(r.exit_code, 0) << r.output;
         return d;
     }();
     return dir;
 }
 
-void expect_budget_failure(const Result& r, const fs::path& out) {
+void expect_budget_failure(const CliResult& r, const fs::path& out) {
     EXPECT_NE(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find("memory budget at frame 0"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("000000.bin"), std::string::npos) << r.output;
@@ -85,8 +68,8 @@ TEST(MapBudget, ConfigKeyStopsIncrementalMode) {
 TEST(MapBudget, MapWithinTheBudgetIsWrittenAndItsSizeReported) {
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const Result r = run("map " + street().string() + " -o " + out.string() +
-                         " --max-map-mb 500 --iterations 20 --no-eval -q");
+    const CliResult r = run("map " + street().string() + " -o " + out.string() +
+                            " --max-map-mb 500 --iterations 20 --no-eval -q");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     std::ifstream in(out / "stats.json");
     const nlohmann::json stats = nlohmann::json::parse(in);
@@ -95,13 +78,13 @@ TEST(MapBudget, MapWithinTheBudgetIsWrittenAndItsSizeReported) {
 }
 
 TEST(MapBudget, NegativeBudgetIsRejected) {
-    const Result r = run("map " + street().string() + " -o " + (test_dir() / "out").string() +
-                         " --max-map-mb -5 -q");
+    const CliResult r = run("map " + street().string() + " -o " + (test_dir() / "out").string() +
+                            " --max-map-mb -5 -q");
     EXPECT_NE(r.exit_code, 0) << r.output;
     const fs::path config = test_dir() / "bad.yaml";
     std::ofstream(config) << "map:\n  max_map_mb: -1\n";
-    const Result c = run("map " + street().string() + " -o " + (test_dir() / "out").string() +
-                         " -c " + config.string() + " -q");
+    const CliResult c = run("map " + street().string() + " -o " + (test_dir() / "out").string() +
+                            " -c " + config.string() + " -q");
     EXPECT_NE(c.exit_code, 0) << c.output;
     EXPECT_NE(c.output.find("max_map_mb"), std::string::npos) << c.output;
 }

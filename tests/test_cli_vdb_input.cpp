@@ -13,34 +13,16 @@
 #include <string>
 #include <vector>
 
+#include "cli_test_support.hpp"
+
 namespace fs = std::filesystem;
+using namespace shine::cli_test;
 
 namespace {
 
-const fs::path kRoot = fs::path(SHINE_TEST_TMP_DIR) / "cli_vdb_input";
+fs::path test_dir() { return test_dir_of("cli_vdb_input"); }
 
-struct Result {
-    int exit_code;
-    std::string output;
-};
-
-// ctest runs each test in its own process, in parallel: every test works in its own directory.
-fs::path test_dir() {
-    const fs::path d = kRoot / ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    fs::create_directories(d);
-    return d;
-}
-
-Result run(const std::string& args) {
-    const fs::path log = test_dir() / "last_command.log";
-    const std::string command =
-        std::string(SHINE_CLI_PATH) + " " + args + " > " + log.string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    std::ifstream in(log);
-    std::stringstream text;
-    text << in.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
+CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
 
 std::string read_bytes(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
@@ -59,7 +41,7 @@ const fs::path& mapped() {
         const fs::path o = test_dir() / "out";
         fs::remove_all(street);
         fs::remove_all(o);
-        Result r = run("simulate -o " + street.string() + " --frames 2 --seed 3 --no-progress");
+        CliResult r = run("simulate -o " + street.string() + " --frames 2 --seed 3 --no-progress");
         EXPECT_EQ(r.exit_code, 0) << r.output;
         r = run("map " + street.string() + " -o " + o.string() +
                 " --iterations 50 --threads 2 --no-eval -q");
@@ -108,7 +90,7 @@ std::vector<std::pair<std::string, std::string>> damaged_versions(
     return out;
 }
 
-void expect_clear_failure(const Result& r, const std::string& file_name) {
+void expect_clear_failure(const CliResult& r, const std::string& file_name) {
     EXPECT_NE(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find(file_name), std::string::npos) << r.output;
     EXPECT_EQ(r.output.find("internal error"), std::string::npos) << r.output;
@@ -128,14 +110,14 @@ TEST(DamagedVdb, MeshAndBakeRejectDamagedMaps) {
         fs::remove(mesh);
         fs::remove(surface);
 
-        const Result m = run("mesh " + damaged.string() + " -o " + mesh.string());
+        const CliResult m = run("mesh " + damaged.string() + " -o " + mesh.string());
         expect_clear_failure(m, damaged.filename().string());
         if (!bytes.empty()) {  // an empty file has no offset to name
             EXPECT_NE(m.output.find("byte offset"), std::string::npos) << m.output;
         }
         EXPECT_FALSE(fs::exists(mesh));
 
-        const Result b = run("bake " + damaged.string() + " -o " + surface.string());
+        const CliResult b = run("bake " + damaged.string() + " -o " + surface.string());
         expect_clear_failure(b, damaged.filename().string());
         EXPECT_FALSE(fs::exists(surface));
     }
@@ -150,7 +132,7 @@ TEST(DamagedVdb, MeshRejectsDamagedSurfaces) {
         write_bytes(damaged, bytes);
         const fs::path mesh = test_dir() / ("mesh_" + name + ".ply");
         fs::remove(mesh);
-        const Result m = run("mesh " + damaged.string() + " -o " + mesh.string());
+        const CliResult m = run("mesh " + damaged.string() + " -o " + mesh.string());
         expect_clear_failure(m, damaged.filename().string());
         if (!bytes.empty()) {
             EXPECT_NE(m.output.find("byte offset"), std::string::npos) << m.output;
@@ -164,7 +146,7 @@ TEST(DamagedVdb, ValidFilesStillWork) {
         SCOPED_TRACE(file);
         const fs::path mesh = test_dir() / (std::string(file) + ".ply");
         fs::remove(mesh);
-        const Result m = run("mesh " + (mapped() / file).string() + " -o " + mesh.string());
+        const CliResult m = run("mesh " + (mapped() / file).string() + " -o " + mesh.string());
         EXPECT_EQ(m.exit_code, 0) << m.output;
         EXPECT_TRUE(fs::exists(mesh));
     }
