@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "shine/core/error.hpp"
+#include "shine/geometry/map_frame.hpp"
 #include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/sampling/surface_normals.hpp"
@@ -30,19 +31,13 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
         preprocess_scan(scan.points_sensor, config_.preprocess, scan.source, &pre);
     stats_.preprocess += pre;
     if (!origin_set_) {
-        // Far-away (UTM-like) coordinates lose float precision; the map frame is the world frame
-        // shifted by whole kilometres so that coordinates inside the map stay small.
-        const Eigen::Vector3d t = scan.T_world_sensor.translation();
-        sdf_->origin_world_m = (t / 1000.0).array().round().matrix() * 1000.0;
+        sdf_->origin_world_m = map_origin_world_m(scan.T_world_sensor.translation());
         origin_set_ = true;
     }
-    Eigen::Isometry3d T_map_sensor = scan.T_world_sensor;
-    T_map_sensor.translation() -= sdf_->origin_world_m;
-    std::vector<Eigen::Vector3f> points_map;
-    points_map.reserve(points_sensor.size());
-    for (const auto& p : points_sensor) {
-        points_map.push_back((T_map_sensor * p.cast<double>()).cast<float>());
-    }
+    const Eigen::Isometry3d T_map_sensor =
+        map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m);
+    const std::vector<Eigen::Vector3f> points_map =
+        points_in_map_frame(points_sensor, T_map_sensor);
     const Eigen::Vector3f origin_map = T_map_sensor.translation().cast<float>();
     rays_.add_scan(origin_map, points_map);
     stages[Stage::kPreprocess] = seconds_since(start);

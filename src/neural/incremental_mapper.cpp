@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "shine/core/error.hpp"
+#include "shine/geometry/map_frame.hpp"
 #include "shine/io/preprocess.hpp"
 #include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/trainer.hpp"
@@ -92,18 +93,14 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
         preprocess_scan(scan.points_sensor, config_.preprocess, scan.source, &pre);
     stats_.preprocess += pre;
     if (!origin_set_) {
-        const Eigen::Vector3d t = scan.T_world_sensor.translation();
-        sdf_->origin_world_m = (t / 1000.0).array().round().matrix() * 1000.0;
+        sdf_->origin_world_m = map_origin_world_m(scan.T_world_sensor.translation());
         origin_set_ = true;
     }
-    Eigen::Isometry3d T_map_sensor = scan.T_world_sensor;
-    T_map_sensor.translation() -= sdf_->origin_world_m;
+    const Eigen::Isometry3d T_map_sensor =
+        map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m);
     WindowScan current;
     current.origin_map = T_map_sensor.translation().cast<float>();
-    current.points_map.reserve(points_sensor.size());
-    for (const auto& p : points_sensor) {
-        current.points_map.push_back((T_map_sensor * p.cast<double>()).cast<float>());
-    }
+    current.points_map = points_in_map_frame(points_sensor, T_map_sensor);
     frame.rays = current.points_map.size();
     frame.preprocess_seconds = seconds_since(start);
 

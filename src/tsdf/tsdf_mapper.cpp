@@ -3,6 +3,8 @@
 #include <chrono>
 #include <cmath>
 
+#include "shine/geometry/map_frame.hpp"
+
 namespace shine {
 namespace {
 double seconds_since(std::chrono::steady_clock::time_point start) {
@@ -32,13 +34,11 @@ void TsdfMapper::add_scan(const Scan& scan) {
         preprocess_scan(scan.points_sensor, config_.preprocess, scan.source, &pre);
     stats_.preprocess += pre;
     if (!origin_set_) {
-        // BatchMapper's map frame: the world shifted by whole kilometres.
-        const Eigen::Vector3d t = scan.T_world_sensor.translation();
-        volume_.set_origin_world_m((t / 1000.0).array().round().matrix() * 1000.0);
+        volume_.set_origin_world_m(map_origin_world_m(scan.T_world_sensor.translation()));
         origin_set_ = true;
     }
-    Eigen::Isometry3d T_map_sensor = scan.T_world_sensor;
-    T_map_sensor.translation() -= volume_.origin_world_m();
+    const Eigen::Isometry3d T_map_sensor =
+        map_from_sensor(scan.T_world_sensor, volume_.origin_world_m());
     std::vector<Eigen::Vector3d> points_map;
     points_map.reserve(points_sensor.size());
     for (const auto& p : points_sensor) points_map.push_back(T_map_sensor * p.cast<double>());
