@@ -119,15 +119,12 @@ TEST(PlyMesh, WriteRejectsInconsistentMesh) {
     EXPECT_FALSE(fs::exists(dir / "b.ply"));
 }
 
-TEST(PlyMesh, WritingHalfAMillionTrianglesIsFast) {
-    const fs::path path = test_dir("speed") / "big.ply";
+TEST(PlyMesh, HalfAMillionTrianglesRoundTrip) {
+    // Large enough to cross the writer's buffer many times; the write speed itself is a benchmark
+    // matter (docs/performance.md), not a test's.
+    const fs::path path = test_dir("large") / "big.ply";
     const shine::TriangleMesh mesh = random_mesh(250000, 500000, /*observed=*/true);
-    const auto start = std::chrono::steady_clock::now();
     shine::write_ply_mesh(path, mesh);
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    // Buffered writing takes tens of milliseconds; the bound leaves room for a loaded machine.
-    EXPECT_LT(seconds, 1.0);
     // 12 bytes per vertex, 1 + 12 + 1 per face, plus the header.
     EXPECT_GT(fs::file_size(path), 250000u * 12 + 500000u * 14);
     const shine::TriangleMesh back = shine::read_ply_mesh(path);
