@@ -30,9 +30,7 @@ CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
 const fs::path& street() {
     static const fs::path dir = [] {
         const fs::path d = test_dir() / "street";
-        fs::remove_all(d);
-        const CliResult r = run("simulate -o " + d.string() + " --frames 6 --seed 3 --no-progress");
-        EXPECT_EQ(r.exit_code, 0) << r.output;
+        simulate_street(d, /*frames=*/6, /*seed=*/3);
         return d;
     }();
     return dir;
