@@ -52,4 +52,18 @@ std::filesystem::path resolve_reference(const std::filesystem::path& data,
     return ref;
 }
 
+void add_scan_selection_options(CLI::App* cmd, int& first_frame, int& last_frame, int& frame_step,
+                                std::string& poses_path) {
+    cmd->add_option("--first-frame", first_frame, "First scan index")->capture_default_str();
+    cmd->add_option("--last-frame", last_frame, "Last scan index, -1 = all")->capture_default_str();
+    cmd->add_option("--frame-step", frame_step, "Use every n-th scan")->capture_default_str();
+    cmd->add_option("--poses", poses_path, "Pose file (default: found in DATA)");
+}
+
+void add_evaluation_options(CLI::App* cmd, std::string& ref_path, bool& no_eval) {
+    cmd->add_option("--ref", ref_path,
+                    "Reference mesh to evaluate against (default: DATA/gt_mesh.ply if present)");
+    cmd->add_flag("--no-eval", no_eval, "Skip the evaluation");
+}
+
 }  // namespace shine::cli

@@ -3,6 +3,7 @@
 
 #include <tbb/global_control.h>
 
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <filesystem>
 #include <memory>
@@ -28,6 +29,13 @@ std::filesystem::path resolve_data_dir(const std::string& data, bool quiet);
 /// a file that does not exist.
 std::filesystem::path resolve_reference(const std::filesystem::path& data,
                                         const std::string& ref_path, bool no_eval);
+
+/// The options that select scans of a sequence: --first-frame, --last-frame, --frame-step, --poses.
+void add_scan_selection_options(CLI::App* cmd, int& first_frame, int& last_frame, int& frame_step,
+                                std::string& poses_path);
+
+/// The evaluation options: --ref (reference mesh) and --no-eval.
+void add_evaluation_options(CLI::App* cmd, std::string& ref_path, bool& no_eval);
 
 /// Seconds since `start`.
 inline double seconds_since(std::chrono::steady_clock::time_point start) {

@@ -149,14 +149,9 @@ const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
     cmd->add_option("--seed", opt->seed, "Random seed of ShineVDB");
     cmd->add_flag("--half-features", opt->half_features,
                   "Store ShineVDB's features as float16 (map.feature_precision: float16)");
-    cmd->add_option("--first-frame", opt->first_frame, "First scan index")->capture_default_str();
-    cmd->add_option("--last-frame", opt->last_frame, "Last scan index, -1 = all")
-        ->capture_default_str();
-    cmd->add_option("--frame-step", opt->frame_step, "Use every n-th scan")->capture_default_str();
-    cmd->add_option("--poses", opt->poses_path, "Pose file (default: found in DATA)");
-    cmd->add_option("--ref", opt->ref_path,
-                    "Reference mesh to evaluate against (default: DATA/gt_mesh.ply if present)");
-    cmd->add_flag("--no-eval", opt->no_eval, "Skip the evaluation");
+    add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
+                               opt->poses_path);
+    add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
     cmd->callback([opt, &action] { action = [opt] { return run_bench(*opt); }; });
 });

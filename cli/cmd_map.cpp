@@ -252,16 +252,11 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
         ->capture_default_str();
     cmd->add_option("--mesh-every", opt->mesh_every,
                     "Incremental mode: write OUT/progress/mesh_NNNNNN.ply every K frames");
-    cmd->add_option("--first-frame", opt->first_frame, "First scan index")->capture_default_str();
-    cmd->add_option("--last-frame", opt->last_frame, "Last scan index, -1 = all")
-        ->capture_default_str();
-    cmd->add_option("--frame-step", opt->frame_step, "Use every n-th scan")->capture_default_str();
-    cmd->add_option("--poses", opt->poses_path, "Pose file (default: found in DATA)");
-    cmd->add_option("--ref", opt->ref_path,
-                    "Reference mesh to evaluate against (default: DATA/gt_mesh.ply if present)");
+    add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
+                               opt->poses_path);
+    add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     cmd->add_flag("--half-features", opt->half_features,
                   "Store the features in float16 (map.feature_precision: float16)");
-    cmd->add_flag("--no-eval", opt->no_eval, "Skip the evaluation");
     cmd->add_option("--max-map-mb", opt->max_map_mb,
                     "Stop before training if the map (features + structure) would exceed this "
                     "many MB (0 = unlimited; config map.max_map_mb)")
