@@ -1,5 +1,6 @@
 // `shine map [DATA] -o OUT`: scans -> neural map (map.vdb) -> level set (surface.vdb) -> mesh.ply,
 // with stats.json, and metrics against a reference mesh when one is available.
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -11,11 +12,13 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
+#include "shine/core/stop_request.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/map/map_file.hpp"
+#include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
 
@@ -42,7 +45,77 @@ struct MapOptions {
     int mesh_every = -1;
     double max_map_mb = -1.0;  ///< < 0: the configuration's map.max_map_mb
     bool profile = false;
+    std::string resume_dir;            ///< continue the interrupted run in this output directory
+    double checkpoint_minutes = 10.0;  ///< periodic checkpoints (0: only on Ctrl-C)
+    int interrupt_after = 0;           ///< tests: raise SIGINT at the N-th step (hidden option)
+    std::vector<std::string> given;    ///< the options given on the command line
 };
+
+fs::path checkpoint_file(const fs::path& out) { return out / "checkpoint.bin"; }
+
+/// The options --resume accepts besides itself: they do not change the result.
+bool allowed_with_resume(const std::string& option) {
+    return option == "--threads" || option == "--quiet" || option == "--profile" ||
+           option == "--checkpoint-minutes";
+}
+
+/// What a checkpoint stores to continue the run: everything that decides the result.
+nlohmann::json describe_run(const MapOptions& opt, const fs::path& data,
+                            const MapperConfig& config) {
+    return {{"format", 1},
+            {"data", fs::absolute(data).string()},
+            {"mode", opt.mode},
+            {"first_frame", opt.first_frame},
+            {"last_frame", opt.last_frame},
+            {"frame_step", opt.frame_step},
+            {"poses", opt.poses_path.empty() ? "" : fs::absolute(opt.poses_path).string()},
+            {"ref", opt.ref_path.empty() ? "" : fs::absolute(opt.ref_path).string()},
+            {"no_eval", opt.no_eval},
+            {"config_yaml", config_to_yaml(config)}};
+}
+
+/// The options and configuration of the run whose checkpoint is in `opt.resume_dir`, with this
+/// invocation's --threads, --quiet, --profile and --checkpoint-minutes.
+MapOptions options_from_checkpoint(const MapOptions& opt, MapperConfig& config) {
+    for (const std::string& option : opt.given) {
+        if (!option.empty() && option != "--resume" && !allowed_with_resume(option)) {
+            throw ConfigError(
+                "--resume continues a run with the settings stored in its "
+                "checkpoint; only --threads, --quiet, --profile and "
+                "--checkpoint-minutes may be given with it, not " +
+                (option == "data" ? std::string("a data directory") : option));
+        }
+    }
+    const fs::path file = checkpoint_file(opt.resume_dir);
+    if (!fs::exists(file)) {
+        throw IoError("cannot resume '" + opt.resume_dir +
+                      "': it has no checkpoint.bin (only a "
+                      "run stopped with Ctrl-C or SIGTERM, or one with periodic checkpoints, "
+                      "leaves one)");
+    }
+    const std::string text = read_checkpoint_description(file);
+    MapOptions resumed = opt;
+    try {
+        const nlohmann::json run = nlohmann::json::parse(text);
+        if (run.at("format").get<int>() != 1) throw ConfigError("unknown run description format");
+        resumed.data = run.at("data").get<std::string>();
+        resumed.mode = run.at("mode").get<std::string>();
+        resumed.first_frame = run.at("first_frame").get<int>();
+        resumed.last_frame = run.at("last_frame").get<int>();
+        resumed.frame_step = run.at("frame_step").get<int>();
+        resumed.poses_path = run.at("poses").get<std::string>();
+        resumed.ref_path = run.at("ref").get<std::string>();
+        resumed.no_eval = run.at("no_eval").get<bool>();
+        parse_config_yaml(run.at("config_yaml").get<std::string>(),
+                          "the configuration in '" + file.string() + "'", config);
+    } catch (const nlohmann::json::exception& e) {
+        throw IoError("checkpoint '" + file.string() + "': its run description is damaged (" +
+                      e.what() + ")");
+    }
+    resumed.out = opt.resume_dir;
+    if (opt.threads >= 0) config.threads = opt.threads;
+    return resumed;
+}
 
 void write_json(const fs::path& path, const nlohmann::json& json) {
     write_stream_atomically(path, [&](std::ostream& out) { out << json.dump(2) << "\n"; });
@@ -108,13 +181,8 @@ nlohmann::json profile_to_json(const StageProfile& profile) {
             {"frames", frames}};
 }
 
-int run_map(const MapOptions& opt) {
-    const auto start_total = std::chrono::steady_clock::now();
-    Progress::set_globally_enabled(!opt.quiet);
-    const bool incremental = opt.mode == "incremental";
-    if (opt.mode != "batch" && !incremental) {
-        throw ConfigError("--mode must be 'batch' or 'incremental', got '" + opt.mode + "'");
-    }
+/// The configuration of a new run: the file, then the command line's options over it.
+MapperConfig config_from_options(const MapOptions& opt) {
     MapperConfig config;
     if (!opt.config_path.empty()) load_config_yaml(opt.config_path, config);
     if (opt.leaf_size_m != 0.0) {
@@ -127,6 +195,24 @@ int run_map(const MapOptions& opt) {
     if (opt.half_features) config.octree.feature_precision = FeaturePrecision::kFloat16;
     if (opt.mesh_every >= 0) config.incremental.mesh_every = opt.mesh_every;
     if (opt.max_map_mb >= 0.0) config.max_map_mb = opt.max_map_mb;
+    return config;
+}
+
+int run_map(const MapOptions& given_options) {
+    const auto start_total = std::chrono::steady_clock::now();
+    const bool resuming = !given_options.resume_dir.empty();
+    MapperConfig config;
+    const MapOptions opt =
+        resuming ? options_from_checkpoint(given_options, config) : given_options;
+    if (!resuming) config = config_from_options(opt);
+    Progress::set_globally_enabled(!opt.quiet);
+    const bool incremental = opt.mode == "incremental";
+    if (opt.mode != "batch" && !incremental) {
+        throw ConfigError("--mode must be 'batch' or 'incremental', got '" + opt.mode + "'");
+    }
+    if (!(opt.checkpoint_minutes >= 0.0)) {
+        throw ConfigError("--checkpoint-minutes must be >= 0 (0: checkpoints only on Ctrl-C)");
+    }
     config.finalize();
     if (opt.print_config) {
         std::printf("%s", config_to_yaml(config).c_str());
@@ -143,14 +229,35 @@ int run_map(const MapOptions& opt) {
     const ScanSequence sequence = ScanSequence::open(data, seq_options);
     const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
     const fs::path out = opt.out;
+    if (!resuming && fs::exists(checkpoint_file(out))) {
+        throw ConfigError("'" + checkpoint_file(out).string() +
+                          "' holds an interrupted run: continue it with `shine map --resume " +
+                          out.string() + "`, or delete that file to start again from scratch");
+    }
     ensure_directory(out);
+
+    // Ctrl-C / SIGTERM finish the current step and write a checkpoint (checkpoint.hpp).
+    const StopOnSignal stop_on_signal;
+    RunControl control;
+    control.checkpoint_path = checkpoint_file(out);
+    control.run_description = describe_run(opt, data, config).dump(2);
+    control.checkpoint_interval_s = opt.checkpoint_minutes * 60.0;
+    control.resume = resuming;
+    control.resume_hint = "shine map --resume " + out.string();
+    std::size_t polls = 0;
+    control.stop_requested = [&] {
+        if (opt.interrupt_after > 0 && ++polls == static_cast<std::size_t>(opt.interrupt_after)) {
+            std::raise(SIGINT);  // the real handler's path, at a reproducible step
+        }
+        return stop_requested();
+    };
 
     std::optional<SequenceMap> batch_map;
     std::optional<IncrementalSequenceMap> incremental_map;
     if (incremental) {
-        incremental_map = map_sequence_incremental(config, sequence, out);
+        incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
     } else {
-        batch_map = map_sequence(config, sequence, out);
+        batch_map = map_sequence(config, sequence, out, {}, &control);
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();
@@ -165,6 +272,7 @@ int run_map(const MapOptions& opt) {
     nlohmann::json json;
     json["data"] = data.string();
     json["mode"] = opt.mode;
+    json["resumed"] = resuming;
     json["frames"] = stats.frames;
     json["rays"] = stats.rays;
     json["threads"] = config.threads;
@@ -228,6 +336,9 @@ int run_map(const MapOptions& opt) {
     }
     json["peak_rss_bytes"] = peak_rss_bytes();
     write_json(out / "stats.json", json);
+    // The products are complete: the checkpoint is no longer needed.
+    std::error_code ignored;
+    fs::remove(checkpoint_file(out), ignored);
     return 0;
 }
 
@@ -264,10 +375,27 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     cmd->add_flag("--profile", opt->profile,
                   "Print seconds per stage (per-frame medians and run totals; also in "
                   "stats.json \"profile\")");
+    cmd->add_option("--resume", opt->resume_dir,
+                    "Continue the run stopped (Ctrl-C, SIGTERM) with its checkpoint in this "
+                    "output directory, to the result the uninterrupted run gives; its settings "
+                    "come from the checkpoint");
+    cmd->add_option("--checkpoint-minutes", opt->checkpoint_minutes,
+                    "Also write OUT/checkpoint.bin every this many minutes (0: only when stopped "
+                    "by Ctrl-C/SIGTERM); removed when the run completes")
+        ->capture_default_str();
+    cmd->add_option("--interrupt-after", opt->interrupt_after,
+                    "Testing: act as if Ctrl-C were pressed during step N")
+        ->group("");
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
     cmd->add_flag("--print-config", opt->print_config,
                   "Print the effective configuration as YAML and exit");
-    cmd->callback([opt, &action] { action = [opt] { return run_map(*opt); }; });
+    cmd->callback([opt, cmd, &action] {
+        opt->given.clear();
+        for (const CLI::Option* option : cmd->get_options()) {
+            if (option->count() > 0) opt->given.push_back(option->get_name());
+        }
+        action = [opt] { return run_map(*opt); };
+    });
 });
 
 }  // namespace

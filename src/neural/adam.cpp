@@ -1,5 +1,7 @@
 #include "shine/optim/adam.hpp"
 
+#include "shine/io/binary_stream.hpp"
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -83,6 +85,28 @@ void RowAdam::step_all(float* params, const float* grads) {
 
 std::size_t RowAdam::memory_bytes() const {
     return moments_.size() * sizeof(float) + steps_.size() * sizeof(std::uint32_t);
+}
+
+void RowAdam::save(BinaryWriter& out) const {
+    out.value<std::int32_t>(row_dim_);
+    out.array(moments_);
+    out.array(steps_);
+}
+
+void RowAdam::load(BinaryReader& in) {
+    const auto row_dim = in.value<std::int32_t>("Adam row size");
+    if (row_dim != row_dim_) {
+        in.fail("Adam row size",
+                std::to_string(row_dim) + " differs from this map's " + std::to_string(row_dim_));
+    }
+    std::vector<float> moments = in.array<float>("Adam moments");
+    std::vector<std::uint32_t> steps = in.array<std::uint32_t>("Adam step counts");
+    if (moments.size() != steps.size() * 2 * static_cast<std::size_t>(row_dim_)) {
+        in.fail("Adam moments",
+                "do not match the " + std::to_string(steps.size()) + " step counts");
+    }
+    moments_ = std::move(moments);
+    steps_ = std::move(steps);
 }
 
 }  // namespace shine

@@ -2,9 +2,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <type_traits>
 
 #include "shine/core/error.hpp"
 #include "shine/geometry/map_frame.hpp"
+#include "shine/io/binary_stream.hpp"
+#include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/sampling/surface_normals.hpp"
@@ -53,21 +56,27 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
     return stages;
 }
 
-void BatchMapper::train(const std::function<void(std::size_t, double)>& on_progress) {
+bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progress,
+                        const std::function<bool()>& stop) {
     if (rays_.num_rays() == 0) {
         throw DataError("no points left to map after preprocessing (check the range limits)");
     }
     auto start = std::chrono::steady_clock::now();
-    if (config_.normals.enabled) rays_.set_normals(estimate_ray_normals(rays_, config_.normals));
+    if (config_.normals.enabled && !normals_done_) {
+        rays_.set_normals(estimate_ray_normals(rays_, config_.normals));
+    }
+    normals_done_ = true;
     stats_.normals_seconds += seconds_since(start);
     start = std::chrono::steady_clock::now();
-    Trainer trainer(*sdf_, config_.trainer, config_.sampling);
+    if (!trainer_) trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
+    Trainer& trainer = *trainer_;
+    trainer.reset_seconds();
     const float lr0 = config_.trainer.feature_adam.learning_rate;
     const float dlr0 = config_.trainer.decoder_adam.learning_rate;
     const int iterations = config_.batch_iterations();
-    TrainStepStats last;
-    double bce_avg = 0.0;
-    for (int it = 0; it < iterations; ++it) {
+    bool stopped = false;
+    while (iterations_done_ < iterations) {
+        const int it = iterations_done_;
         // Cosine decay from lr to final_learning_rate_ratio * lr: large steps place the surface,
         // small ones refine it.
         const double progress = iterations > 1 ? static_cast<double>(it) / (iterations - 1) : 1.0;
@@ -76,15 +85,69 @@ void BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
             (1.0 - config_.final_learning_rate_ratio) * 0.5 * (1.0 + std::cos(M_PI * progress));
         trainer.set_feature_learning_rate(static_cast<float>(lr0 * ratio));
         trainer.set_decoder_learning_rate(static_cast<float>(dlr0 * ratio));
-        last = trainer.step(rays_, 0, rays_.num_rays(), static_cast<std::uint64_t>(it));
-        bce_avg = it == 0 ? last.bce : 0.98 * bce_avg + 0.02 * last.bce;
-        if (on_progress && (it % 50 == 0 || it + 1 == iterations)) on_progress(it + 1, bce_avg);
+        const TrainStepStats last =
+            trainer.step(rays_, 0, rays_.num_rays(), static_cast<std::uint64_t>(it));
+        bce_average_ = it == 0 ? last.bce : 0.98 * bce_average_ + 0.02 * last.bce;
+        stats_.final_bce = last.bce;
+        stats_.final_eikonal = last.eikonal;
+        ++iterations_done_;
+        ++stats_.iterations;
+        if (on_progress && (it % 50 == 0 || it + 1 == iterations))
+            on_progress(it + 1, bce_average_);
+        if (stop && iterations_done_ < iterations && stop()) {
+            stopped = true;
+            break;
+        }
     }
-    stats_.iterations += static_cast<std::size_t>(iterations);
-    stats_.final_bce = last.bce;
-    stats_.final_eikonal = last.eikonal;
     stats_.train_seconds += seconds_since(start);
     stats_.sample_seconds += trainer.seconds().sample;
+    return !stopped;
+}
+
+void BatchMapper::save_state(BinaryWriter& out) const {
+    out.tag("batch mapper");
+    static_assert(std::is_trivially_copyable_v<MappingStats>);
+    out.value(stats_);
+    out.value<std::int32_t>(iterations_done_);
+    out.value(bce_average_);
+    save_sdf_parameters(out, *sdf_);
+    out.value<std::uint8_t>(trainer_ ? 1 : 0);
+    if (trainer_) trainer_->save_state(out);
+}
+
+void BatchMapper::load_state(BinaryReader& in) {
+    in.expect_tag("batch mapper");
+    const auto stats = in.value<MappingStats>("mapping statistics");
+    if (stats.frames != stats_.frames || stats.rays != stats_.rays) {
+        in.fail("mapping statistics",
+                "record " + std::to_string(stats.frames) + " scans with " +
+                    std::to_string(stats.rays) + " points, but the data now gives " +
+                    std::to_string(stats_.frames) + " scans with " + std::to_string(stats_.rays) +
+                    " (did the data or the frame selection change?)");
+    }
+    const auto iterations_done = in.value<std::int32_t>("iterations done");
+    if (iterations_done < 0 || iterations_done > config_.batch_iterations()) {
+        in.fail("iterations done", std::to_string(iterations_done) + " is outside 0.." +
+                                       std::to_string(config_.batch_iterations()));
+    }
+    const auto bce_average = in.value<double>("running BCE");
+    load_sdf_parameters(in, *sdf_);
+    if (in.value<std::uint8_t>("trainer flag")) {
+        trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
+        trainer_->load_state(in);
+    } else {
+        trainer_.reset();
+    }
+    // The time and the steps spent before the interruption count; the load and allocate stages
+    // just ran again and are counted again.
+    const MappingStats reloaded = stats_;
+    stats_ = stats;
+    stats_.load_seconds += reloaded.load_seconds;
+    stats_.allocate_seconds += reloaded.allocate_seconds;
+    stats_.normals_seconds = stats.normals_seconds;
+    normals_done_ = false;  // the normals are not stored: train() estimates them again
+    iterations_done_ = iterations_done;
+    bce_average_ = bce_average;
 }
 
 }  // namespace shine

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "shine/core/error.hpp"
+#include "shine/io/binary_stream.hpp"
 
 namespace shine {
 
@@ -112,6 +113,28 @@ void ImportanceWeights::update_importance(const std::vector<float>& gradient_nor
 
 void ImportanceWeights::set_anchors(const float* params) {
     std::copy(params, params + anchors_.size(), anchors_.begin());
+}
+
+void ImportanceWeights::save(BinaryWriter& out) const {
+    out.value<std::int32_t>(row_dim_);
+    out.array(importance_);
+    out.array(anchors_);
+}
+
+void ImportanceWeights::load(BinaryReader& in) {
+    const auto row_dim = in.value<std::int32_t>("importance row size");
+    if (row_dim != row_dim_) {
+        in.fail("importance row size",
+                std::to_string(row_dim) + " differs from this map's " + std::to_string(row_dim_));
+    }
+    std::vector<float> importance = in.array<float>("importance weights");
+    std::vector<float> anchors = in.array<float>("importance anchors");
+    if (anchors.size() != importance.size() * static_cast<std::size_t>(row_dim_)) {
+        in.fail("importance anchors",
+                "do not match the " + std::to_string(importance.size()) + " importance weights");
+    }
+    importance_ = std::move(importance);
+    anchors_ = std::move(anchors);
 }
 
 }  // namespace shine

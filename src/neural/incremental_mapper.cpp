@@ -3,10 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <type_traits>
 
 #include "shine/core/error.hpp"
 #include "shine/geometry/map_frame.hpp"
+#include "shine/io/binary_stream.hpp"
 #include "shine/io/preprocess.hpp"
+#include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/model/decoder_file.hpp"
@@ -82,10 +85,7 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
 
 IncrementalMapper::~IncrementalMapper() = default;
 
-const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
-    const auto frame_start = std::chrono::steady_clock::now();
-    IncrementalFrameStats frame;
-
+void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame) {
     // 1. Preprocess into the map frame (as BatchMapper::add_scan).
     auto start = std::chrono::steady_clock::now();
     PreprocessStats pre;
@@ -116,13 +116,26 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     while (window_.size() > static_cast<std::size_t>(config_.incremental.normal_window_frames)) {
         window_.pop_front();
     }
+}
+
+void IncrementalMapper::replay_scan(const Scan& scan) {
+    IncrementalFrameStats frame;
+    preprocess_and_allocate(scan, frame);
+    frames_.push_back(frame);  // compared with the stored frames by load_state()
+}
+
+const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
+    const auto frame_start = std::chrono::steady_clock::now();
+    IncrementalFrameStats frame;
+    preprocess_and_allocate(scan, frame);
+
     RaySet rays;
     for (const WindowScan& s : window_) rays.add_scan(s.origin_map, s.points_map);
     const std::size_t ray_begin = rays.first_ray(static_cast<std::uint32_t>(window_.size() - 1));
     const std::size_t ray_end = rays.num_rays();
 
     // 3. Normals of the current scan, among the window's endpoints.
-    start = std::chrono::steady_clock::now();
+    auto start = std::chrono::steady_clock::now();
     if (config_.normals.enabled && ray_end > ray_begin) {
         std::vector<Eigen::Vector3f> normals =
             estimate_ray_normals(rays, config_.normals, ray_begin, ray_end);
@@ -210,6 +223,50 @@ double IncrementalMapper::median_frame_seconds() const {
 
 std::size_t IncrementalMapper::state_bytes() const {
     return importance_.memory_bytes() + trainer_->optimizer_bytes();
+}
+
+void IncrementalMapper::save_state(BinaryWriter& out) const {
+    out.tag("incremental mapper");
+    static_assert(std::is_trivially_copyable_v<IncrementalFrameStats>);
+    static_assert(std::is_trivially_copyable_v<MappingStats>);
+    out.array(frames_);
+    out.value(stats_);
+    out.value<std::uint64_t>(iteration_);
+    save_sdf_parameters(out, *sdf_);
+    trainer_->save_state(out);
+    importance_.save(out);
+}
+
+void IncrementalMapper::load_state(BinaryReader& in) {
+    in.expect_tag("incremental mapper");
+    std::vector<IncrementalFrameStats> frames = in.array<IncrementalFrameStats>("frame statistics");
+    if (frames.size() != frames_.size()) {
+        in.fail("frame statistics", "record " + std::to_string(frames.size()) + " frames, but " +
+                                        std::to_string(frames_.size()) + " were replayed");
+    }
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        if (frames[i].rays != frames_[i].rays || frames[i].new_corners != frames_[i].new_corners) {
+            in.fail("frame statistics",
+                    "of frame " + std::to_string(i) + " record " + std::to_string(frames[i].rays) +
+                        " points and " + std::to_string(frames[i].new_corners) +
+                        " new corners, but the scan now gives " + std::to_string(frames_[i].rays) +
+                        " and " + std::to_string(frames_[i].new_corners) +
+                        " (did the data or the configuration change?)");
+        }
+    }
+    const auto stats = in.value<MappingStats>("mapping statistics");
+    const auto iteration = in.value<std::uint64_t>("iteration");
+    load_sdf_parameters(in, *sdf_);
+    trainer_->load_state(in);
+    importance_.load(in);
+    if (importance_.num_rows() != sdf_->octree.num_corners()) {
+        in.fail("importance weights", "cover " + std::to_string(importance_.num_rows()) +
+                                          " rows, the map has " +
+                                          std::to_string(sdf_->octree.num_corners()));
+    }
+    frames_ = std::move(frames);
+    stats_ = stats;
+    iteration_ = iteration;
 }
 
 }  // namespace shine

@@ -4,8 +4,10 @@
 
 #include <chrono>
 #include <cstdio>
+#include <type_traits>
 
 #include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
@@ -23,12 +25,74 @@ std::string frame_name(std::size_t frame) {
     std::snprintf(name, sizeof(name), "mesh_%06zu.ply", frame);
     return name;
 }
+
+// Incremental checkpoints: the frames done, the mapper's state, the stage profile so far and the
+// progress meshes written so far.
+void write_incremental_checkpoint(const RunControl& control, const IncrementalSequenceMap& result,
+                                  std::size_t frames_done) {
+    write_checkpoint(control.checkpoint_path, control.run_description, CheckpointMode::kIncremental,
+                     [&](BinaryWriter& out) {
+                         out.value<std::uint64_t>(frames_done);
+                         result.mapper->save_state(out);
+                         static_assert(std::is_trivially_copyable_v<StageSeconds>);
+                         out.array(result.profile.frames);
+                         out.value<std::uint64_t>(result.progress_meshes.size());
+                         for (const ProgressMesh& m : result.progress_meshes) {
+                             out.value<std::uint64_t>(m.frame);
+                             out.string(m.path.string());
+                             out.value<std::uint64_t>(m.triangles);
+                             out.value(m.bake_seconds);
+                             out.value(m.write_seconds);
+                         }
+                     });
+}
+
+/// Replays the checkpoint's frames into `result` and restores its state; returns the frames done.
+std::size_t resume_incremental(const RunControl& control, const ScanSequence& sequence,
+                               IncrementalSequenceMap& result, const std::string& progress_tag) {
+    std::string description;
+    CheckpointMode mode;
+    BinaryReader in = read_checkpoint_header(control.checkpoint_path, description, mode);
+    if (mode != CheckpointMode::kIncremental) {
+        throw IoError("checkpoint '" + control.checkpoint_path.string() +
+                      "' belongs to a batch-mode run, not an incremental-mode one");
+    }
+    const auto frames_done = in.value<std::uint64_t>("frames done");
+    if (frames_done > sequence.size()) {
+        in.fail("frames done", std::to_string(frames_done) + " exceeds the sequence's " +
+                                   std::to_string(sequence.size()) + " scans");
+    }
+    {
+        Progress progress(progress_tag.empty() ? "replay" : "replay " + progress_tag, frames_done);
+        for (std::size_t i = 0; i < frames_done; ++i) {
+            result.mapper->replay_scan(sequence.load(i));
+            progress.update(i + 1);
+        }
+        progress.finish("map rebuilt");
+    }
+    result.mapper->load_state(in);
+    result.profile.frames = in.array<StageSeconds>("stage profile");
+    const auto meshes = in.value<std::uint64_t>("progress mesh count");
+    if (meshes > frames_done) in.fail("progress mesh count", "exceeds the frames done");
+    for (std::uint64_t k = 0; k < meshes; ++k) {
+        ProgressMesh m;
+        m.frame = in.value<std::uint64_t>("progress mesh frame");
+        m.path = in.string("progress mesh path");
+        m.triangles = in.value<std::uint64_t>("progress mesh triangles");
+        m.bake_seconds = in.value<double>("progress mesh seconds");
+        m.write_seconds = in.value<double>("progress mesh seconds");
+        result.progress_meshes.push_back(m);
+    }
+    in.expect_end();
+    return static_cast<std::size_t>(frames_done);
+}
 }  // namespace
 
 IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
                                                 const ScanSequence& sequence,
                                                 const fs::path& out_dir,
-                                                const std::string& progress_tag) {
+                                                const std::string& progress_tag,
+                                                const RunControl* control) {
     MapperConfig config = config_in;
     config.finalize();
     ensure_directory(out_dir);
@@ -37,9 +101,16 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
     IncrementalSequenceMap result;
     result.mapper = std::make_unique<IncrementalMapper>(config);
     IncrementalMapper& mapper = *result.mapper;
+    const bool checkpoints = control && !control->checkpoint_path.empty();
+    std::size_t first_frame = 0;
+    if (checkpoints && control->resume) {
+        first_frame = resume_incremental(*control, sequence, result, progress_tag);
+    }
+    CheckpointClock clock(checkpoints ? control->checkpoint_interval_s : 0.0);
     {
         Progress progress(progress_tag.empty() ? "map" : "map " + progress_tag, sequence.size());
-        for (std::size_t i = 0; i < sequence.size(); ++i) {
+        if (first_frame > 0) progress.update(first_frame, "resumed");
+        for (std::size_t i = first_frame; i < sequence.size(); ++i) {
             const auto t_load = std::chrono::steady_clock::now();
             const Scan scan = sequence.load(i);
             const double load_seconds = seconds_since(t_load);
@@ -65,6 +136,20 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
                 snapshot.write_seconds = seconds_since(t0);
                 snapshot.triangles = mesh.triangles.size();
                 result.progress_meshes.push_back(snapshot);
+            }
+            if (checkpoints && control->stop_requested && control->stop_requested()) {
+                progress.finish("stopped");
+                write_incremental_checkpoint(*control, result, i + 1);
+                throw Interrupted("stopped after frame " + std::to_string(i + 1) + " of " +
+                                  std::to_string(sequence.size()) + "; checkpoint written to " +
+                                  control->checkpoint_path.string() +
+                                  (control->resume_hint.empty()
+                                       ? ""
+                                       : "; continue with `" + control->resume_hint + "`"));
+            }
+            if (checkpoints && clock.due() && !last) {
+                write_incremental_checkpoint(*control, result, i + 1);
+                clock.reset();
             }
         }
         char detail[64];

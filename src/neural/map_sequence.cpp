@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <optional>
 
 #include "shine/bake/level_set_file.hpp"
 #include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/map/map_file.hpp"
@@ -26,14 +28,22 @@ std::string tagged(const std::string& label, const std::string& tag) {
 }
 }  // namespace
 
-void train_with_progress(BatchMapper& mapper, int iterations, const std::string& label) {
+bool train_with_progress(BatchMapper& mapper, int iterations, const std::string& label,
+                         const std::function<bool()>& stop) {
     Progress progress(label, static_cast<std::size_t>(std::max(iterations, 0)));
-    mapper.train([&](std::size_t done, double bce) {
-        char detail[64];
-        std::snprintf(detail, sizeof(detail), "bce %.4f", bce);
-        progress.update(done, detail);
-    });
-    progress.finish();
+    if (mapper.iterations_done() > 0) {
+        progress.update(static_cast<std::size_t>(mapper.iterations_done()), "resumed");
+    }
+    const bool done = mapper.train(
+        [&](std::size_t done_steps, double bce) {
+            char detail[64];
+            std::snprintf(detail, sizeof(detail), "bce %.4f", bce);
+            progress.update(done_steps, detail);
+        },
+        stop);
+    progress.finish(done ? std::string()
+                         : "paused at step " + std::to_string(mapper.iterations_done()));
+    return done;
 }
 
 MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
@@ -57,14 +67,52 @@ MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
     return products;
 }
 
+namespace {
+// Batch checkpoints: a phase byte, then (training phase) the mapper's state. A stop during
+// loading stores no state: resuming loads every scan anyway.
+enum class BatchPhase : std::uint8_t { kLoading = 0, kTraining = 1 };
+
+void write_batch_checkpoint(const RunControl& control, const BatchMapper& mapper,
+                            BatchPhase phase) {
+    write_checkpoint(control.checkpoint_path, control.run_description, CheckpointMode::kBatch,
+                     [&](BinaryWriter& out) {
+                         out.value(static_cast<std::uint8_t>(phase));
+                         if (phase == BatchPhase::kTraining) mapper.save_state(out);
+                     });
+}
+
+[[noreturn]] void stop_with_checkpoint(const RunControl& control, const std::string& where) {
+    throw Interrupted(
+        "stopped " + where + "; checkpoint written to " + control.checkpoint_path.string() +
+        (control.resume_hint.empty() ? "" : "; continue with `" + control.resume_hint + "`"));
+}
+}  // namespace
+
 SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequence,
-                         const fs::path& out_dir, const std::string& progress_tag) {
+                         const fs::path& out_dir, const std::string& progress_tag,
+                         const RunControl* control) {
     MapperConfig config = config_in;
     config.finalize();
     ensure_directory(out_dir);
     SequenceMap result;
     result.mapper = std::make_unique<BatchMapper>(config);
     BatchMapper& mapper = *result.mapper;
+    const bool checkpoints = control && !control->checkpoint_path.empty();
+    const auto stop = [&] {
+        return control && control->stop_requested && control->stop_requested();
+    };
+    CheckpointClock clock(checkpoints ? control->checkpoint_interval_s : 0.0);
+    // A resumed run first checks the checkpoint's header, so that a damaged file fails at once.
+    std::optional<BinaryReader> resume;
+    if (checkpoints && control->resume) {
+        std::string description;
+        CheckpointMode mode;
+        resume.emplace(read_checkpoint_header(control->checkpoint_path, description, mode));
+        if (mode != CheckpointMode::kBatch) {
+            throw IoError("checkpoint '" + control->checkpoint_path.string() +
+                          "' belongs to an incremental-mode run, not a batch-mode one");
+        }
+    }
     {
         Progress progress(tagged("load", progress_tag), sequence.size());
         for (std::size_t i = 0; i < sequence.size(); ++i) {
@@ -75,11 +123,52 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
             stages[Stage::kLoad] = load_seconds;
             result.profile.frames.push_back(stages);
             progress.update(i + 1, std::to_string(mapper.sdf().octree.num_corners()) + " corners");
+            if (checkpoints && !resume && i + 1 < sequence.size() && stop()) {
+                progress.finish("stopped");
+                write_batch_checkpoint(*control, mapper, BatchPhase::kLoading);
+                stop_with_checkpoint(*control, "while loading, after scan " +
+                                                   std::to_string(i + 1) + " of " +
+                                                   std::to_string(sequence.size()));
+            }
         }
         progress.finish(std::to_string(mapper.stats().rays) + " rays, " +
                         std::to_string(mapper.sdf().octree.num_corners()) + " corners");
     }
-    train_with_progress(mapper, config.batch_iterations(), tagged("train", progress_tag));
+    if (resume) {
+        const auto phase = resume->value<std::uint8_t>("phase");
+        if (phase == static_cast<std::uint8_t>(BatchPhase::kTraining)) {
+            mapper.load_state(*resume);
+        } else if (phase != static_cast<std::uint8_t>(BatchPhase::kLoading)) {
+            resume->fail("phase",
+                         std::to_string(phase) + " is neither loading (0) nor training (1)");
+        }
+        resume->expect_end();
+        resume.reset();
+    }
+    const int iterations = config.batch_iterations();
+    if (checkpoints) {
+        clock.reset();
+        bool stopped = false;
+        // Train in stretches between periodic checkpoints; a stop request ends the loop.
+        while (true) {
+            const bool done =
+                train_with_progress(mapper, iterations, tagged("train", progress_tag), [&] {
+                    stopped = stop();
+                    return stopped || clock.due();
+                });
+            if (done || stopped) break;
+            write_batch_checkpoint(*control, mapper, BatchPhase::kTraining);
+            clock.reset();
+        }
+        if (stopped || stop()) {
+            write_batch_checkpoint(*control, mapper, BatchPhase::kTraining);
+            stop_with_checkpoint(*control, "after optimisation step " +
+                                               std::to_string(mapper.iterations_done()) + " of " +
+                                               std::to_string(iterations));
+        }
+    } else {
+        train_with_progress(mapper, iterations, tagged("train", progress_tag));
+    }
     result.products = write_map_products(mapper.sdf(), config, out_dir);
     const MappingStats& stats = mapper.stats();
     StageProfile& profile = result.profile;

@@ -8,6 +8,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/core/random.hpp"
+#include "shine/io/binary_stream.hpp"
 #include "shine/model/batch_gradient.hpp"
 
 namespace shine {
@@ -95,6 +96,39 @@ void Trainer::on_map_grown() {
     for (std::size_t row = known_rows; row < rows; ++row) {
         table.get_row(row, master_features_.data() + row * dim);
     }
+}
+
+void Trainer::save_state(BinaryWriter& out) const {
+    out.tag("trainer");
+    out.value<std::uint32_t>(steps_taken_);
+    feature_adam_.save(out);
+    decoder_adam_.save(out);
+    out.array(master_features_);
+}
+
+void Trainer::load_state(BinaryReader& in) {
+    in.expect_tag("trainer");
+    const auto steps_taken = in.value<std::uint32_t>("trainer step count");
+    feature_adam_.load(in);
+    decoder_adam_.load(in);
+    std::vector<float> master = in.array<float>("float32 master features");
+    const std::size_t rows = sdf_.octree.num_corners();
+    const std::size_t dim = static_cast<std::size_t>(sdf_.octree.feature_dim());
+    if (feature_adam_.num_rows() != rows) {
+        in.fail("feature Adam state", "has " + std::to_string(feature_adam_.num_rows()) +
+                                          " rows, the map " + std::to_string(rows));
+    }
+    if (decoder_adam_.num_rows() != 1) in.fail("decoder Adam state", "is not a single row");
+    const bool half = sdf_.octree.feature_precision() == FeaturePrecision::kFloat16;
+    if (master.size() != (half ? rows * dim : 0)) {
+        in.fail("float32 master features", "hold " + std::to_string(master.size()) +
+                                               " values for a map of " + std::to_string(rows) +
+                                               " rows in " +
+                                               to_string(sdf_.octree.feature_precision()));
+    }
+    steps_taken_ = steps_taken;
+    master_features_ = std::move(master);
+    local_index_.assign(rows, -1);
 }
 
 float* Trainer::mutable_feature_params() {

@@ -15,6 +15,10 @@
 
 namespace shine {
 
+class BinaryReader;
+class BinaryWriter;
+class Trainer;
+
 /// Wall-clock seconds per stage and sizes, for stats.json.
 struct MappingStats {
     std::size_t frames = 0;
@@ -40,9 +44,22 @@ class BatchMapper {
     /// of its preprocess and allocate stages.
     StageSeconds add_scan(const Scan& scan);
 
-    /// Runs config.batch_iterations() optimisation steps; `on_progress(done, bce)` is called now
-    /// and then.
-    void train(const std::function<void(std::size_t done, double bce)>& on_progress = {});
+    /// Runs the config.batch_iterations() optimisation steps not yet done; `on_progress(done,
+    /// bce)` is called now and then. With `stop`, polled after every step, training pauses when
+    /// it returns true: train() then returns false and a later call (or one after save_state /
+    /// load_state) continues where it stopped, to the same result. Returns true when every step
+    /// has run.
+    bool train(const std::function<void(std::size_t done, double bce)>& on_progress = {},
+               const std::function<bool()>& stop = {});
+
+    /// Steps done so far.
+    int iterations_done() const { return iterations_done_; }
+
+    /// The training state (parameters, optimiser, step count, stats) for a checkpoint.
+    /// load_state() expects the same scans to have been added again first (it checks the counts)
+    /// and throws IoError via the reader where the state does not fit.
+    void save_state(BinaryWriter& out) const;
+    void load_state(BinaryReader& in);
 
     const NeuralSdf& sdf() const { return *sdf_; }
     NeuralSdf& sdf() { return *sdf_; }
@@ -55,6 +72,11 @@ class BatchMapper {
     RaySet rays_;
     MappingStats stats_;
     bool origin_set_ = false;
+    // Training state, kept between train() calls.
+    std::unique_ptr<Trainer> trainer_;
+    bool normals_done_ = false;
+    int iterations_done_ = 0;
+    double bce_average_ = 0.0;
 };
 
 }  // namespace shine

@@ -30,6 +30,8 @@
 
 namespace shine {
 
+class BinaryReader;
+class BinaryWriter;
 class Trainer;
 
 /// What one add_scan() did and how long each step took (wall-clock seconds).
@@ -40,7 +42,7 @@ struct IncrementalFrameStats {
     double preprocess_seconds = 0.0;
     double allocate_seconds = 0.0;
     double normals_seconds = 0.0;
-    double train_seconds = 0.0;       ///< the scan's optimisation steps, sampling included
+    double train_seconds = 0.0;  ///< the scan's optimisation steps, sampling included
     double importance_seconds = 0.0;
     double total_seconds = 0.0;
     /// The same split by profile stage (preprocess ... importance; load is the caller's).
@@ -66,6 +68,17 @@ class IncrementalMapper {
     /// source for invalid points (per preprocess config).
     const IncrementalFrameStats& add_scan(const Scan& scan);
 
+    /// Resuming a checkpoint: steps 1-2 only (preprocess, grow the map, keep the scan in the
+    /// normal window), which rebuild the map's structure and window as add_scan() left them. Call
+    /// it for each scan the checkpoint had integrated, then load_state().
+    void replay_scan(const Scan& scan);
+
+    /// The state after the last add_scan() (parameters, optimiser, importance, iteration, frame
+    /// statistics) for a checkpoint. load_state() checks that the replayed scans match the
+    /// stored ones (count and points per scan) and throws IoError via the reader otherwise.
+    void save_state(BinaryWriter& out) const;
+    void load_state(BinaryReader& in);
+
     const NeuralSdf& sdf() const { return *sdf_; }
     NeuralSdf& sdf() { return *sdf_; }
     const MapperConfig& config() const { return config_; }
@@ -83,6 +96,9 @@ class IncrementalMapper {
         Eigen::Vector3f origin_map;
         std::vector<Eigen::Vector3f> points_map;
     };
+
+    /// Steps 1-2 of add_scan(): fills frame.rays, new_corners, preprocess and allocate seconds.
+    void preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame);
 
     MapperConfig config_;
     std::unique_ptr<NeuralSdf> sdf_;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "shine/io/scan_sequence.hpp"
+#include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
 #include "shine/mapper/map_sequence.hpp"
 
@@ -41,9 +42,16 @@ struct IncrementalSequenceMap {
 /// config.incremental.mesh_every frames. Progress lines are labelled "map", followed by
 /// `progress_tag` when it is not empty. Throws what the steps throw (IoError, DataError naming
 /// the scan, ConfigError).
+///
+/// With a `control` (checkpoint.hpp): after every frame it polls control->stop_requested and,
+/// when that is true, writes a checkpoint and throws Interrupted (no product is written); it also
+/// writes one every control->checkpoint_interval_s. With control->resume it replays the frames
+/// the checkpoint had integrated (IncrementalMapper::replay_scan), restores the state and goes on
+/// with the next frame.
 IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config,
                                                 const ScanSequence& sequence,
                                                 const std::filesystem::path& out_dir,
-                                                const std::string& progress_tag = {});
+                                                const std::string& progress_tag = {},
+                                                const RunControl* control = nullptr);
 
 }  // namespace shine

@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -19,6 +20,7 @@
 #include "shine/geometry/triangle_mesh.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/batch_mapper.hpp"
+#include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/mapper_config.hpp"
 #include "shine/mapper/stage_profile.hpp"
 #include "shine/model/neural_sdf.hpp"
@@ -48,7 +50,10 @@ StageSeconds product_stages(const MapProducts& products);
 
 /// Trains `mapper` behind a Progress line labelled `label` with the running BCE; `iterations` is
 /// the step count the mapper will run (its config's batch_iterations()), for the progress bar.
-void train_with_progress(BatchMapper& mapper, int iterations, const std::string& label = "train");
+/// With `stop` (polled after every step) training may pause early: returns BatchMapper::train()'s
+/// result.
+bool train_with_progress(BatchMapper& mapper, int iterations, const std::string& label = "train",
+                         const std::function<bool()>& stop = {});
 
 /// Writes the products of a trained map into `out_dir` (which must exist): `map.vdb` (the neural
 /// map with `config` as YAML), `surface.vdb` (baked with config.bake) and `mesh.ply` (meshed with
@@ -60,8 +65,15 @@ MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
 /// products into `out_dir` (created if missing). Progress lines are labelled "load" and "train",
 /// followed by `progress_tag` when it is not empty. Throws what the steps throw (IoError,
 /// DataError naming the scan, ConfigError).
+///
+/// With a `control` (checkpoint.hpp): after every scan and every optimisation step it polls
+/// control->stop_requested and, when that is true, writes a checkpoint and throws Interrupted
+/// (no product is written); it also writes one every control->checkpoint_interval_s. With
+/// control->resume it first loads every scan again, restores the checkpoint's training state and
+/// continues. The checkpoint file is left in place (the caller removes it once it has what it
+/// needs).
 SequenceMap map_sequence(const MapperConfig& config, const ScanSequence& sequence,
-                         const std::filesystem::path& out_dir,
-                         const std::string& progress_tag = {});
+                         const std::filesystem::path& out_dir, const std::string& progress_tag = {},
+                         const RunControl* control = nullptr);
 
 }  // namespace shine

@@ -26,6 +26,9 @@
 
 namespace shine {
 
+class BinaryReader;
+class BinaryWriter;
+
 struct TrainerConfig {
     int batch_size = 4096;        ///< samples per iteration (rays = batch / samples per ray)
     float sigma_m = 0.05f;        ///< sigmoid scale of Eq. (1)
@@ -98,6 +101,13 @@ class Trainer {
                master_features_.capacity() * sizeof(float) +
                local_index_.capacity() * sizeof(std::int32_t);
     }
+
+    /// Everything a later step depends on besides the SDF itself (for a checkpoint): Adam's
+    /// moments and step counts for features and decoder, and the float32 master copy of a
+    /// float16 map. load_state() expects the map to have the rows it had at save_state() (the
+    /// caller rebuilds it first) and throws IoError (via the reader) where the shapes differ.
+    void save_state(BinaryWriter& out) const;
+    void load_state(BinaryReader& in);
 
     /// Fixed number of row partitions of the parallel gradient reduction.
     static constexpr int kRowPartitions = 16;

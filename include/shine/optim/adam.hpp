@@ -11,6 +11,9 @@
 
 namespace shine {
 
+class BinaryReader;
+class BinaryWriter;
+
 struct AdamConfig {
     float learning_rate = 0.01f;
     float beta1 = 0.9f;
@@ -63,6 +66,11 @@ class RowAdam {
     std::size_t num_rows() const { return steps_.size(); }
     std::vector<std::uint32_t>& steps() { return steps_; }
     std::size_t memory_bytes() const;
+
+    /// The moments and per-row step counts (for a checkpoint); load() replaces them and throws
+    /// IoError (via the reader) if the stored table's shape differs from this one's row_dim.
+    void save(BinaryWriter& out) const;
+    void load(BinaryReader& in);
 
   private:
     const AdamBiasCorrection& bias_for_step(std::uint32_t step);

@@ -46,6 +46,9 @@ struct ImportanceConfig {
     float importance_cap = 1.0f;
 };
 
+class BinaryReader;
+class BinaryWriter;
+
 /// Importance Omega and anchor theta* per row of a growing parameter table of `row_dim` floats.
 class ImportanceWeights {
   public:
@@ -89,6 +92,11 @@ class ImportanceWeights {
     std::size_t memory_bytes() const {
         return (importance_.capacity() + anchors_.capacity()) * sizeof(float);
     }
+
+    /// Omega and theta* of every row (for a checkpoint); load() replaces them, checking that
+    /// the stored rows have this table's row_dim.
+    void save(BinaryWriter& out) const;
+    void load(BinaryReader& in);
 
   private:
     ImportanceConfig config_;

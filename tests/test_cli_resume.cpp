@@ -1,0 +1,218 @@
+// Checkpoint and resume (`shine map`, Ctrl-C / SIGTERM, `shine map --resume OUT`): a run stopped
+// at any step and resumed gives the uninterrupted run's result bit for bit, in both modes and
+// both feature precisions, whatever the thread count; a stopped run leaves no product behind;
+// bad checkpoints and misuse fail with messages naming the file and the problem.
+//
+// The hidden option --interrupt-after N raises SIGINT at the N-th step (a scan while loading, an
+// optimisation step, an incremental frame), so the real signal handler runs at a reproducible
+// point.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "cli_test_support.hpp"
+#include "shine/map/map_file.hpp"
+
+namespace fs = std::filesystem;
+using namespace shine::cli_test;
+
+namespace {
+
+constexpr int kInterruptedExit = 130;
+
+fs::path test_dir() { return test_dir_of("cli_resume"); }
+
+CliResult run(const std::string& args) { return run_shine(args, test_dir()); }
+
+/// A 4-scan street and a configuration with short training, made once per test (ctest runs the
+/// tests in parallel processes, each in its own directory).
+const fs::path& street() {
+    static const fs::path dir = [] {
+        const fs::path d = test_dir() / "street";
+        simulate_street(d, 4, 5);
+        std::ofstream(d.parent_path() / "fast.yaml") << "incremental:\n"
+                                                        "  iterations_per_frame: 25\n"
+                                                        "training:\n"
+                                                        "  iterations: 300\n";
+        return d;
+    }();
+    return dir;
+}
+
+std::string fast_config() { return (street().parent_path() / "fast.yaml").string(); }
+
+std::string map_args(const fs::path& out, const std::string& extra) {
+    return "map '" + street().string() + "' -o '" + out.string() + "' -c '" + fast_config() +
+           "' -q " + extra;
+}
+
+/// Maps without interruption (once per configuration and process).
+fs::path reference_run(const std::string& name, const std::string& extra) {
+    const fs::path out = test_dir() / ("reference_" + name);
+    fs::remove_all(out);
+    const CliResult r = run(map_args(out, extra));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return out;
+}
+
+void expect_stopped_without_products(const CliResult& r, const fs::path& out) {
+    EXPECT_EQ(r.exit_code, kInterruptedExit) << r.output;
+    EXPECT_NE(r.output.find("checkpoint written to"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("shine map --resume"), std::string::npos) << r.output;
+    EXPECT_TRUE(fs::exists(out / "checkpoint.bin"));
+    for (const char* product : {"map.vdb", "surface.vdb", "mesh.ply", "stats.json"}) {
+        EXPECT_FALSE(fs::exists(out / product)) << product;
+    }
+}
+
+/// The resumed run's products equal the reference run's: the mesh byte for byte, the map's
+/// features and decoder exactly (map.vdb itself differs by the file's random UUID).
+void expect_same_result(const fs::path& resumed, const fs::path& reference) {
+    EXPECT_FALSE(fs::exists(resumed / "checkpoint.bin")) << "a finished run removes it";
+    const std::string mesh = read_text(resumed / "mesh.ply");
+    ASSERT_FALSE(mesh.empty());
+    EXPECT_TRUE(mesh == read_text(reference / "mesh.ply")) << "meshes differ";
+    const shine::LoadedMap a = shine::load_neural_map(resumed / "map.vdb");
+    const shine::LoadedMap b = shine::load_neural_map(reference / "map.vdb");
+    EXPECT_EQ(a.sdf.octree.features().to_floats(), b.sdf.octree.features().to_floats());
+    EXPECT_EQ(a.sdf.decoder.params(), b.sdf.decoder.params());
+    EXPECT_EQ(read_json(resumed / "stats.json").at("eval").at("fscore"),
+              read_json(reference / "stats.json").at("eval").at("fscore"));
+}
+
+}  // namespace
+
+TEST(Resume, IncrementalRunStoppedAfterAFrameContinuesToTheSameMap) {
+    const fs::path reference = reference_run("incremental", "--mode incremental --threads 2");
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    expect_stopped_without_products(
+        run(map_args(out, "--mode incremental --threads 2 --interrupt-after 2")), out);
+    // Resumed with another thread count: the run is deterministic for any.
+    const CliResult r = run("map --resume '" + out.string() + "' -q --threads 1");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    expect_same_result(out, reference);
+    const auto stats = read_json(out / "stats.json");
+    EXPECT_TRUE(stats.at("resumed").get<bool>());
+    EXPECT_EQ(stats.at("frames"), 4);
+    EXPECT_EQ(stats.at("incremental").at("frames").size(), 4u);
+}
+
+TEST(Resume, BatchRunStoppedDuringTrainingContinuesToTheSameMap) {
+    const fs::path reference = reference_run("batch", "--threads 2");
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    // Four scans are loaded (3 polls), then step 100 of 300 is the 103rd poll.
+    expect_stopped_without_products(run(map_args(out, "--threads 2 --interrupt-after 103")), out);
+    const CliResult r = run("map --resume '" + out.string() + "' -q --threads 2");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    expect_same_result(out, reference);
+    EXPECT_EQ(read_json(out / "stats.json").at("iterations"), 300);
+}
+
+TEST(Resume, HalfPrecisionRunStoppedTwiceContinuesToTheSameMap) {
+    const fs::path reference = reference_run("half", "--threads 2 --half-features");
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    // Stopped while loading, then again during training (the float32 master copy must survive).
+    expect_stopped_without_products(
+        run(map_args(out, "--threads 2 --half-features --interrupt-after 2")), out);
+    const CliResult again =
+        run("map --resume '" + out.string() + "' -q --threads 2 --interrupt-after 150");
+    expect_stopped_without_products(again, out);
+    EXPECT_NE(again.output.find("after optimisation step 150 of 300"), std::string::npos)
+        << again.output;
+    const CliResult r = run("map --resume '" + out.string() + "' -q --threads 1");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    expect_same_result(out, reference);
+}
+
+TEST(Resume, PeriodicCheckpointsDoNotChangeTheResultAndAreRemovedAtTheEnd) {
+    const fs::path reference = reference_run("incremental_periodic", "--mode incremental");
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    // A checkpoint after every frame (the interval is a few milliseconds).
+    const CliResult r = run(map_args(out, "--mode incremental --checkpoint-minutes 0.0001"));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    expect_same_result(out, reference);
+}
+
+TEST(Resume, RefusesToStartANewRunOverACheckpoint) {
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    expect_stopped_without_products(run(map_args(out, "--mode incremental --interrupt-after 1")),
+                                    out);
+    const auto before = fs::file_size(out / "checkpoint.bin");
+    const CliResult r = run(map_args(out, "--mode incremental"));
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find("holds an interrupted run"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("--resume"), std::string::npos) << r.output;
+    EXPECT_EQ(fs::file_size(out / "checkpoint.bin"), before);
+}
+
+TEST(Resume, RejectsOptionsThatWouldChangeTheResult) {
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    expect_stopped_without_products(run(map_args(out, "--interrupt-after 1")), out);
+    for (const std::string& option :
+         std::vector<std::string>{"--seed 7", "--iterations 10", "--half-features",
+                                  "--mode incremental", "'" + street().string() + "'"}) {
+        const CliResult r = run("map --resume '" + out.string() + "' -q " + option);
+        EXPECT_EQ(r.exit_code, 1) << option << ": " << r.output;
+        EXPECT_NE(r.output.find("settings stored in its checkpoint"), std::string::npos)
+            << r.output;
+    }
+}
+
+TEST(Resume, MissingTruncatedOrForeignCheckpointsGiveClearErrors) {
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    fs::create_directories(out);
+    CliResult r = run("map --resume '" + out.string() + "' -q");
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find("has no checkpoint.bin"), std::string::npos) << r.output;
+
+    expect_stopped_without_products(run(map_args(out, "--mode incremental --interrupt-after 2")),
+                                    out);
+    const std::string whole = read_text(out / "checkpoint.bin");
+    const fs::path file = out / "checkpoint.bin";
+    // Cut in the middle of the feature rows: the message names the file, the byte and the part.
+    std::ofstream(file, std::ios::binary | std::ios::trunc) << whole.substr(0, whole.size() / 2);
+    r = run("map --resume '" + out.string() + "' -q");
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find("checkpoint '" + file.string() + "', byte"), std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("truncated"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out / "mesh.ply"));
+
+    std::ofstream(file, std::ios::binary | std::ios::trunc) << "ply\nformat ascii 1.0\n";
+    r = run("map --resume '" + out.string() + "' -q");
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find(file.string()), std::string::npos) << r.output;
+
+    std::ofstream(file, std::ios::binary | std::ios::trunc);  // empty
+    r = run("map --resume '" + out.string() + "' -q");
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find(file.string()), std::string::npos) << r.output;
+}
+
+TEST(Resume, DataThatChangedSinceTheCheckpointIsRejected) {
+    const fs::path data = test_dir() / "street_copy";
+    fs::remove_all(data);
+    fs::copy(street(), data, fs::copy_options::recursive);
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    expect_stopped_without_products(
+        run("map '" + data.string() + "' -o '" + out.string() + "' -c '" + fast_config() +
+            "' -q --mode incremental --interrupt-after 3"),
+        out);
+    // Another street under the same name: the replayed scans no longer match the checkpoint.
+    simulate_street(data, 4, 6);
+    const CliResult r = run("map --resume '" + out.string() + "' -q");
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find("did the data"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out / "mesh.ply"));
+}
