@@ -42,3 +42,37 @@ TEST(ConfigYaml, MaxMapMbIsReadAndChecked) {
 
 }  // namespace
 }  // namespace shine
+
+namespace shine {
+namespace {
+
+TEST(ConfigYaml, OriginAndWorldCropAreListsOfNumbersThatReadBack) {
+    MapperConfig config;
+    parse_config_yaml(
+        "map:\n  origin_world_m: [500000, 5000000, 0]\n"
+        "preprocess:\n  crop_world_m: [499990.5, 4999990, -5, 500040, 5000010.25, 30]\n",
+        "test.yaml", config);
+    config.finalize();
+    EXPECT_EQ(config.origin_world_m, (std::vector<double>{500000, 5000000, 0}));
+    EXPECT_EQ(config.crop_world_m,
+              (std::vector<double>{499990.5, 4999990, -5, 500040, 5000010.25, 30}));
+    MapperConfig again;
+    parse_config_yaml(config_to_yaml(config), "written", again);
+    EXPECT_EQ(again.origin_world_m, config.origin_world_m);
+    EXPECT_EQ(again.crop_world_m, config.crop_world_m);
+    // [] is the default: no fixed origin, no crop.
+    MapperConfig unset;
+    parse_config_yaml(config_to_yaml(MapperConfig{}), "defaults", unset);
+    EXPECT_TRUE(unset.origin_world_m.empty());
+    EXPECT_TRUE(unset.crop_world_m.empty());
+
+    expect_config_error("map:\n  origin_world_m: [1, 2]\n", "needs 3 numbers");
+    expect_config_error("map:\n  origin_world_m: 5\n", "must be a list");
+    expect_config_error("preprocess:\n  crop_world_m: [0, 0, 0, 1, 1, .nan]\n", "finite");
+    MapperConfig inverted;
+    parse_config_yaml("preprocess:\n  crop_world_m: [0, 0, 0, 1, -1, 1]\n", "t", inverted);
+    EXPECT_THROW(inverted.finalize(), ConfigError);
+}
+
+}  // namespace
+}  // namespace shine

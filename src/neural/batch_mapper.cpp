@@ -5,10 +5,10 @@
 #include <type_traits>
 
 #include "shine/core/error.hpp"
-#include "shine/geometry/map_frame.hpp"
 #include "shine/io/binary_stream.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/map_budget.hpp"
+#include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/sampling/surface_normals.hpp"
 
@@ -29,20 +29,10 @@ BatchMapper::~BatchMapper() = default;
 StageSeconds BatchMapper::add_scan(const Scan& scan) {
     StageSeconds stages;
     auto start = std::chrono::steady_clock::now();
-    PreprocessStats pre;
-    const std::vector<Eigen::Vector3f> points_sensor =
-        preprocess_scan(scan.points_sensor, config_.preprocess, scan.source, &pre);
-    stats_.preprocess += pre;
-    if (!origin_set_) {
-        sdf_->origin_world_m = map_origin_world_m(scan.T_world_sensor.translation());
-        origin_set_ = true;
-    }
-    const Eigen::Isometry3d T_map_sensor =
-        map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m);
-    const std::vector<Eigen::Vector3f> points_map =
-        points_in_map_frame(points_sensor, T_map_sensor);
-    const Eigen::Vector3f origin_map = T_map_sensor.translation().cast<float>();
-    rays_.add_scan(origin_map, points_map);
+    const ScanInMap in_map =
+        scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess);
+    const std::vector<Eigen::Vector3f>& points_map = in_map.points_map;
+    rays_.add_scan(in_map.origin_map, points_map);
     stages[Stage::kPreprocess] = seconds_since(start);
     stats_.load_seconds += stages[Stage::kPreprocess];
 

@@ -6,11 +6,11 @@
 #include <type_traits>
 
 #include "shine/core/error.hpp"
-#include "shine/geometry/map_frame.hpp"
 #include "shine/io/binary_stream.hpp"
 #include "shine/io/preprocess.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/map_budget.hpp"
+#include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/model/decoder_file.hpp"
 #include "shine/sampling/ray_set.hpp"
@@ -88,19 +88,7 @@ IncrementalMapper::~IncrementalMapper() = default;
 void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame) {
     // 1. Preprocess into the map frame (as BatchMapper::add_scan).
     auto start = std::chrono::steady_clock::now();
-    PreprocessStats pre;
-    const std::vector<Eigen::Vector3f> points_sensor =
-        preprocess_scan(scan.points_sensor, config_.preprocess, scan.source, &pre);
-    stats_.preprocess += pre;
-    if (!origin_set_) {
-        sdf_->origin_world_m = map_origin_world_m(scan.T_world_sensor.translation());
-        origin_set_ = true;
-    }
-    const Eigen::Isometry3d T_map_sensor =
-        map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m);
-    WindowScan current;
-    current.origin_map = T_map_sensor.translation().cast<float>();
-    current.points_map = points_in_map_frame(points_sensor, T_map_sensor);
+    ScanInMap current = scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess);
     frame.rays = current.points_map.size();
     frame.preprocess_seconds = seconds_since(start);
 
@@ -130,7 +118,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     preprocess_and_allocate(scan, frame);
 
     RaySet rays;
-    for (const WindowScan& s : window_) rays.add_scan(s.origin_map, s.points_map);
+    for (const ScanInMap& s : window_) rays.add_scan(s.origin_map, s.points_map);
     const std::size_t ray_begin = rays.first_ray(static_cast<std::uint32_t>(window_.size() - 1));
     const std::size_t ray_end = rays.num_rays();
 

@@ -73,6 +73,32 @@ Field int_list(std::vector<int>& field, int lo, int hi) {
             }};
 }
 
+/// A list of exactly `count` finite numbers, or the empty list [] (= unset).
+Field double_list(std::vector<double>& field, std::size_t count) {
+    return {[&field, count](const YAML::Node& node, const std::string& key) {
+                if (!node.IsSequence()) throw ConfigError("key '" + key + "' must be a list");
+                std::vector<double> values;
+                for (const auto& item : node) {
+                    const double v = as<double>(item, key);
+                    if (!std::isfinite(v)) {
+                        throw ConfigError("key '" + key + "': values must be finite numbers");
+                    }
+                    values.push_back(v);
+                }
+                if (!values.empty() && values.size() != count) {
+                    throw ConfigError("key '" + key + "' needs " + std::to_string(count) +
+                                      " numbers (or [] for none), got " +
+                                      std::to_string(values.size()));
+                }
+                field = values;
+            },
+            [&field](YAML::Emitter& out) {
+                out << YAML::Flow << YAML::BeginSeq;
+                for (double v : field) out << v;
+                out << YAML::EndSeq;
+            }};
+}
+
 /// The text of a scalar value; a list or mapping is a ConfigError naming the key (yaml-cpp would
 /// throw its own exception, which is not a shine::Error).
 std::string scalar_text(const YAML::Node& node, const std::string& key) {
@@ -121,7 +147,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
          {{"min_range_m", number(c.preprocess.min_range_m, 0.0, kInf)},
           {"max_range_m", number(c.preprocess.max_range_m, 0.0, kInf)},
           {"voxel_downsample_m", number(c.preprocess.voxel_downsample_m, 0.0, 10.0)},
-          {"invalid_points", invalid_policy(c.preprocess.invalid_points)}}},
+          {"invalid_points", invalid_policy(c.preprocess.invalid_points)},
+          {"crop_world_m", double_list(c.crop_world_m, 6)}}},
         {"map",
          {{"leaf_size_m", number(c.octree.leaf_size_m, 1e-3, 100.0)},
           {"num_levels", number(c.octree.num_levels, 1, 8)},
@@ -129,7 +156,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"init_std", number(c.octree.init_std, 0.0, 10.0)},
           {"allocation_margin_ratio", number(c.octree.allocation_margin_ratio, 0.0, 4.0)},
           {"feature_precision", precision(c.octree.feature_precision)},
-          {"max_map_mb", number(c.max_map_mb, 0.0, 1e9)}}},
+          {"max_map_mb", number(c.max_map_mb, 0.0, 1e9)},
+          {"origin_world_m", double_list(c.origin_world_m, 3)}}},
         {"decoder", {{"hidden_dims", int_list(c.decoder.hidden_dims, 1, 1024)}}},
         {"sampling",
          {{"surface_samples", number(c.sampling.surface_samples, 0, 32)},
@@ -189,6 +217,17 @@ void MapperConfig::finalize() {
     }
     if (sampling.samples_per_ray() < 1) {
         throw ConfigError("sampling: at least one sample per ray is needed");
+    }
+    if (crop_world_m.size() == 6) {
+        for (int k = 0; k < 3; ++k) {
+            if (!(crop_world_m[k] < crop_world_m[k + 3])) {
+                throw ConfigError("preprocess.crop_world_m: minimum " +
+                                  std::to_string(crop_world_m[k]) + " of axis " +
+                                  std::to_string(k) + " must be below the maximum " +
+                                  std::to_string(crop_world_m[k + 3]) +
+                                  " ([xmin, ymin, zmin, xmax, ymax, zmax])");
+            }
+        }
     }
 }
 

@@ -23,6 +23,7 @@
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/stage_profile.hpp"
 #include "shine/model/decoder.hpp"
 #include "shine/model/neural_sdf.hpp"
@@ -92,11 +93,6 @@ class IncrementalMapper {
     std::size_t state_bytes() const;
 
   private:
-    struct WindowScan {
-        Eigen::Vector3f origin_map;
-        std::vector<Eigen::Vector3f> points_map;
-    };
-
     /// Steps 1-2 of add_scan(): fills frame.rays, new_corners, preprocess and allocate seconds.
     void preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame);
 
@@ -104,7 +100,7 @@ class IncrementalMapper {
     std::unique_ptr<NeuralSdf> sdf_;
     std::unique_ptr<Trainer> trainer_;
     ImportanceWeights importance_;
-    std::deque<WindowScan> window_;  ///< the current scan last
+    std::deque<ScanInMap> window_;  ///< the current scan last
     std::vector<float> gradient_norm_sums_;
     std::vector<IncrementalFrameStats> frames_;
     MappingStats stats_;

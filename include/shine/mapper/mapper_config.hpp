@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "shine/bake/level_set_bake.hpp"
 #include "shine/io/preprocess.hpp"
@@ -35,6 +36,14 @@ struct MapperConfig {
     /// Memory budget of the map (features + structure + decoder, MB = 10^6 bytes), checked after
     /// each scan's allocation (map_budget.hpp); 0 = unlimited. YAML: map.max_map_mb.
     double max_map_mb = 0.0;
+    /// The map frame's origin in the world, [E, N, U] m; empty (the default): the first scan's
+    /// position rounded to whole kilometres (map_frame.hpp). Maps that are merged (tiles) need
+    /// the same origin. YAML: map.origin_world_m.
+    std::vector<double> origin_world_m;
+    /// Only points whose world position lies in this box are mapped, [xmin, ymin, zmin, xmax,
+    /// ymax, zmax] m; empty (the default): no crop. A tile of a larger map uses its box grown
+    /// by an overlap. YAML: preprocess.crop_world_m.
+    std::vector<double> crop_world_m;
     int threads = 0;          ///< 0: all hardware threads
     std::uint64_t seed = 42;  ///< one seed for features, decoder and sampling
 

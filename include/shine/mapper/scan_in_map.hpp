@@ -1,0 +1,28 @@
+// The first step both mappers take with a scan: preprocess it in the sensor frame (preprocess.hpp),
+// fix the map origin with the first scan (map_frame.hpp, or map.origin_world_m), move the points
+// into the map frame and keep those inside preprocess.crop_world_m.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "shine/io/preprocess.hpp"
+#include "shine/io/scan_sequence.hpp"
+#include "shine/mapper/mapper_config.hpp"
+#include "shine/model/neural_sdf.hpp"
+
+namespace shine {
+
+/// A scan ready for the map: sensor position and endpoints in the map frame.
+struct ScanInMap {
+    Eigen::Vector3f origin_map;
+    std::vector<Eigen::Vector3f> points_map;
+};
+
+/// Preprocesses `scan` with config.preprocess (DataError naming scan.source for invalid points,
+/// per its policy) and adds its counts to `stats` (the world crop counts as dropped_box). The
+/// first call (origin_set false) sets sdf.origin_world_m and origin_set.
+ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, NeuralSdf& sdf,
+                            bool& origin_set, PreprocessStats& stats);
+
+}  // namespace shine
