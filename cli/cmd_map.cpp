@@ -133,6 +133,7 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
                           {"seconds", f.total_seconds},
                           {"train_seconds", f.train_seconds},
                           {"importance_seconds", f.importance_seconds},
+                          {"optimizer_bytes", f.optimizer_bytes},
                           {"bce", f.bce},
                           {"regularization", f.regularization}});
     }

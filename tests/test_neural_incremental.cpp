@@ -45,7 +45,7 @@ TEST(ImportanceWeights, RegularizerGradientMatchesFiniteDifferences) {
     ImportanceWeights weights(ImportanceConfig{2.5f, 100.0f}, dim);
     weights.resize(num_rows);
     std::vector<float> params = random_table(num_rows * dim, 0.3f, 1);
-    weights.set_anchors(params.data());
+    const std::vector<float> anchors = params;  // theta*: the values before the drift
     // Omega: row 1 stays 0 (unconstrained), the others differ; then the parameters move away.
     weights.update_importance({0.7f, 0.0f, 3.0f, 1.5f, 9.0f, 0.2f});
     const std::vector<float> drift = random_table(num_rows * dim, 0.2f, 2);
@@ -54,17 +54,17 @@ TEST(ImportanceWeights, RegularizerGradientMatchesFiniteDifferences) {
     // The set A of Eq. (3): rows 0, 1, 2, 3, 5 are used this iteration, row 4 is not.
     const std::vector<std::int32_t> used = {0, 1, 2, 3, 5};
     std::vector<float> grads(params.size(), 0.0f);
-    const double value = weights.add_gradient(params.data(), grads.data(), used);
-    EXPECT_NEAR(value, weights.value(params.data(), used), 1e-6 * value);
+    const double value = weights.add_gradient(params.data(), anchors.data(), grads.data(), used);
+    EXPECT_NEAR(value, weights.value(params.data(), anchors.data(), used), 1e-6 * value);
     EXPECT_GT(value, 0.1);
 
     int nonzero = 0;
     for (std::size_t i = 0; i < params.size(); ++i) {
         const float saved = params[i];
         params[i] = saved + static_cast<float>(kStep);
-        const double vp = weights.value(params.data(), used);
+        const double vp = weights.value(params.data(), anchors.data(), used);
         params[i] = saved - static_cast<float>(kStep);
-        const double vm = weights.value(params.data(), used);
+        const double vm = weights.value(params.data(), anchors.data(), used);
         params[i] = saved;
         const double numeric = (vp - vm) / (2.0 * kStep);
         expect_close(grads[i], numeric, "parameter " + std::to_string(i));
@@ -138,9 +138,14 @@ TEST(IncrementalTrainer, ImportancePassSumsFiniteDifferenceBceGradientNorms) {
     SamplingConfig sampling;
     Trainer trainer(scene.sdf, trainer_config, sampling);
     const std::uint64_t pass = 7;
-    std::vector<float> sums;
-    trainer.accumulate_bce_gradient_norms(scene.rays, 0, scene.rays.num_rays(), pass, sums);
-    ASSERT_EQ(sums.size(), scene.sdf.octree.num_corners());
+    RowGradientNormSums sparse;
+    trainer.accumulate_bce_gradient_norms(scene.rays, 0, scene.rays.num_rays(), pass, sparse);
+    ASSERT_EQ(sparse.rows.size(), sparse.sums.size());
+    std::vector<float> sums(scene.sdf.octree.num_corners(), 0.0f);
+    for (std::size_t i = 0; i < sparse.rows.size(); ++i) {
+        ASSERT_EQ(sums[sparse.rows[i]], 0.0f) << "row " << sparse.rows[i] << " listed twice";
+        sums[sparse.rows[i]] = sparse.sums[i];
+    }
 
     // Brute force over the same samples (each ray's documented stream): (1) every per-sample BCE
     // gradient, row by row, matches central differences component by component; (2) the pass's
@@ -225,8 +230,12 @@ TEST(IncrementalTrainer, RegularizerHookPullsTowardsAnchorsAndIsANoOpWithoutImpo
     none.resize(rows);  // Omega = 0 everywhere: L_r = 0
     ImportanceWeights strong(ImportanceConfig{1.0f, 1e4f}, dim);
     strong.resize(rows);
-    strong.set_anchors(initial.data());
     strong.update_importance(std::vector<float>(rows, 100.0f));
+    // One scan: every row's anchor is its value when the scan first touches it, the initial one.
+    for (Trainer* t : {&t_zero, &t_reg}) {
+        t->enable_anchors();
+        t->begin_scan();
+    }
 
     double regularization = 0.0;
     for (std::uint64_t it = 0; it < 20; ++it) {

@@ -69,16 +69,23 @@ TrainResult train(int threads, FeaturePrecision precision, bool train_decoder, b
     ImportanceWeights importance(ImportanceConfig{3.0f, 1.0f}, scene.sdf.octree.feature_dim());
     importance.resize(scene.sdf.octree.num_corners());
     TrainResult result;
+    if (regularize) {
+        trainer.enable_anchors();
+        trainer.begin_scan();
+    }
     for (std::uint64_t it = 0; it < 12; ++it) {
         if (regularize && it == 6) {
-            // Half-way: importance from a subsampled pass, anchors at the current features.
-            std::vector<float> sums;
+            // Half-way: importance from a subsampled pass; a new scan, so anchors at the current
+            // features.
+            RowGradientNormSums sums;
             const std::size_t n = trainer.accumulate_bce_gradient_norms(
                 scene.rays, 0, scene.rays.num_rays(), 0, sums, 3);
-            for (float& s : sums) s /= static_cast<float>(n);
-            importance.update_importance(sums);
-            importance.set_anchors(trainer.feature_params());
-            result.importance_sums = sums;
+            importance.update_importance_rows(sums.rows, sums.sums, 1.0f / static_cast<float>(n));
+            trainer.begin_scan();
+            result.importance_sums.assign(scene.sdf.octree.num_corners(), 0.0f);
+            for (std::size_t i = 0; i < sums.rows.size(); ++i) {
+                result.importance_sums[sums.rows[i]] = sums.sums[i];
+            }
         }
         const TrainStepStats stats = trainer.step(scene.rays, 0, scene.rays.num_rays(), it,
                                                   regularize ? &importance : nullptr);

@@ -20,23 +20,21 @@ void RowAdam::resize(std::size_t num_rows) {
     steps_.resize(num_rows, 0);
 }
 
-void RowAdam::update_row(float* param, const float* grad, std::size_t row) {
+void adam_update_row(float* param, const float* grad, float* m, float* v, int dim,
+                     const AdamConfig& config, const AdamBiasCorrection& bias) {
     // adam_update() on a whole row, 4 floats at a time with SSE: the same IEEE operations in the
     // same order as the scalar code (so bit-identical results), but SIMD square roots and
     // divisions, which the scalar loop does not get (std::sqrt may set errno, so the compiler
     // keeps it scalar). Eigen's .sqrt() is not used: with EIGEN_FAST_MATH it is approximate.
-    const AdamBiasCorrection& bias = bias_for_step(++steps_[row]);
-    float* m = moments_.data() + row * 2 * row_dim_;
-    float* v = m + row_dim_;
     int i = 0;
 #if defined(__SSE2__)
-    const __m128 beta1 = _mm_set1_ps(config_.beta1), beta2 = _mm_set1_ps(config_.beta2);
-    const __m128 one_minus_beta1 = _mm_set1_ps(1.0f - config_.beta1);
-    const __m128 one_minus_beta2 = _mm_set1_ps(1.0f - config_.beta2);
-    const __m128 lr = _mm_set1_ps(config_.learning_rate), eps = _mm_set1_ps(config_.epsilon);
+    const __m128 beta1 = _mm_set1_ps(config.beta1), beta2 = _mm_set1_ps(config.beta2);
+    const __m128 one_minus_beta1 = _mm_set1_ps(1.0f - config.beta1);
+    const __m128 one_minus_beta2 = _mm_set1_ps(1.0f - config.beta2);
+    const __m128 lr = _mm_set1_ps(config.learning_rate), eps = _mm_set1_ps(config.epsilon);
     const __m128 inv_first = _mm_set1_ps(bias.inv_first);
     const __m128 inv_second = _mm_set1_ps(bias.inv_second);
-    for (; i + 4 <= row_dim_; i += 4) {
+    for (; i + 4 <= dim; i += 4) {
         const __m128 g = _mm_loadu_ps(grad + i);
         const __m128 m_new =
             _mm_add_ps(_mm_mul_ps(beta1, _mm_loadu_ps(m + i)), _mm_mul_ps(one_minus_beta1, g));
@@ -49,7 +47,13 @@ void RowAdam::update_row(float* param, const float* grad, std::size_t row) {
         _mm_storeu_ps(param + i, _mm_sub_ps(_mm_loadu_ps(param + i), step));
     }
 #endif
-    for (; i < row_dim_; ++i) adam_update(param[i], m[i], v[i], grad[i], config_, bias);
+    for (; i < dim; ++i) adam_update(param[i], m[i], v[i], grad[i], config, bias);
+}
+
+void RowAdam::update_row(float* param, const float* grad, std::size_t row) {
+    const AdamBiasCorrection& bias = bias_for_step(++steps_[row]);
+    float* m = moments_.data() + row * 2 * row_dim_;
+    adam_update_row(param, grad, m, m + row_dim_, row_dim_, config_, bias);
 }
 
 void RowAdam::step_rows(float* params, const float* grads, const std::vector<std::int32_t>& rows) {

@@ -24,12 +24,10 @@ ImportanceWeights::ImportanceWeights(const ImportanceConfig& config, int row_dim
     if (row_dim > 64) throw ConfigError("importance weights support rows of at most 64 floats");
 }
 
-void ImportanceWeights::resize(std::size_t num_rows) {
-    importance_.resize(num_rows, 0.0f);
-    anchors_.resize(num_rows * row_dim_, 0.0f);
-}
+void ImportanceWeights::resize(std::size_t num_rows) { importance_.resize(num_rows, 0.0f); }
 
-double ImportanceWeights::value(const float* params, const std::vector<std::int32_t>& rows) const {
+double ImportanceWeights::value(const float* params, const float* anchors,
+                                const std::vector<std::int32_t>& rows) const {
     double sum = 0.0;
     for (const std::int32_t row : rows) {
         const float omega = importance_[row];
@@ -37,7 +35,7 @@ double ImportanceWeights::value(const float* params, const std::vector<std::int3
         const std::size_t base = std::size_t(row) * row_dim_;
         double squared = 0.0;
         for (int l = 0; l < row_dim_; ++l) {
-            const double d = double(params[base + l]) - double(anchors_[base + l]);
+            const double d = double(params[base + l]) - double(anchors[base + l]);
             squared += d * d;
         }
         sum += omega * squared;
@@ -45,56 +43,38 @@ double ImportanceWeights::value(const float* params, const std::vector<std::int3
     return config_.regularization_weight * sum;
 }
 
-namespace {
-/// 2 lambda Omega (theta - theta*) added to one row's gradient; returns |theta - theta*|^2.
-float add_row_gradient(const float* params, const float* anchors, float scale, int dim,
-                       float* grad) {
+double ImportanceWeights::add_row_gradient(std::int32_t row, const float* param,
+                                           const float* anchor, float* grad) const {
+    const float omega = importance_[row];
+    if (omega == 0.0f) return 0.0;
     // As Eigen arrays so that the row is one SIMD expression; a stack array of at most 64 floats
     // (rows are feature vectors, map.feature_dim <= 64).
     const Eigen::Array<float, Eigen::Dynamic, 1, Eigen::ColMajor, 64, 1> d =
-        Eigen::Map<const Eigen::ArrayXf>(params, dim) -
-        Eigen::Map<const Eigen::ArrayXf>(anchors, dim);
-    Eigen::Map<Eigen::ArrayXf>(grad, dim) += scale * d;
-    return d.square().sum();
+        Eigen::Map<const Eigen::ArrayXf>(param, row_dim_) -
+        Eigen::Map<const Eigen::ArrayXf>(anchor, row_dim_);
+    Eigen::Map<Eigen::ArrayXf>(grad, row_dim_) +=
+        (2.0f * config_.regularization_weight * omega) * d;
+    return omega * static_cast<double>(d.square().sum());
 }
-}  // namespace
 
-double ImportanceWeights::add_gradient(const float* params, float* grads,
+double ImportanceWeights::add_gradient(const float* params, const float* anchors, float* grads,
                                        const std::vector<std::int32_t>& rows) const {
-    const float lambda = config_.regularization_weight;
     double sum = 0.0;
     for (const std::int32_t row : rows) {
-        const float omega = importance_[row];
-        if (omega == 0.0f) continue;
         const std::size_t base = std::size_t(row) * row_dim_;
-        sum += omega *
-               static_cast<double>(add_row_gradient(params + base, anchors_.data() + base,
-                                                    2.0f * lambda * omega, row_dim_, grads + base));
+        sum += add_row_gradient(row, params + base, anchors + base, grads + base);
     }
-    return lambda * sum;
+    return config_.regularization_weight * sum;
 }
 
-double ImportanceWeights::add_gradient_listed(const float* params, float* row_grads,
-                                              const std::vector<std::int32_t>& rows) const {
-    const float lambda = config_.regularization_weight;
-    double sum = 0.0;
-    constexpr std::size_t kAhead = 8;  // rows are in random order: prefetch (see RowAdam)
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (i + kAhead < rows.size()) {
-            const std::size_t ahead = std::size_t(rows[i + kAhead]);
-            __builtin_prefetch(importance_.data() + ahead);
-            __builtin_prefetch(anchors_.data() + ahead * row_dim_);
-            __builtin_prefetch(params + ahead * row_dim_);
-        }
-        const float omega = importance_[rows[i]];
-        if (omega == 0.0f) continue;
-        const std::size_t base = std::size_t(rows[i]) * row_dim_;
-        sum += omega * static_cast<double>(add_row_gradient(params + base, anchors_.data() + base,
-                                                            2.0f * lambda * omega, row_dim_,
-                                                            row_grads + i * row_dim_));
+namespace {
+void check_sum(float s, std::size_t row) {
+    if (!(s >= 0.0f) || !std::isfinite(s)) {
+        throw DataError("importance update: gradient norm sum of row " + std::to_string(row) +
+                        " is " + std::to_string(s) + " (must be finite and >= 0)");
     }
-    return lambda * sum;
 }
+}  // namespace
 
 void ImportanceWeights::update_importance(const std::vector<float>& gradient_norm_sums) {
     if (gradient_norm_sums.size() > importance_.size()) {
@@ -102,23 +82,32 @@ void ImportanceWeights::update_importance(const std::vector<float>& gradient_nor
                         " sums for " + std::to_string(importance_.size()) + " rows");
     }
     for (std::size_t i = 0; i < gradient_norm_sums.size(); ++i) {
-        const float s = gradient_norm_sums[i];
-        if (!(s >= 0.0f) || !std::isfinite(s)) {
-            throw DataError("importance update: gradient norm sum of row " + std::to_string(i) +
-                            " is " + std::to_string(s) + " (must be finite and >= 0)");
-        }
-        importance_[i] = std::min(importance_[i] + s, config_.importance_cap);
+        check_sum(gradient_norm_sums[i], i);
+        importance_[i] = std::min(importance_[i] + gradient_norm_sums[i], config_.importance_cap);
     }
 }
 
-void ImportanceWeights::set_anchors(const float* params) {
-    std::copy(params, params + anchors_.size(), anchors_.begin());
+void ImportanceWeights::update_importance_rows(const std::vector<std::int32_t>& rows,
+                                               const std::vector<float>& sums, float scale) {
+    if (rows.size() != sums.size()) {
+        throw DataError("importance update: " + std::to_string(sums.size()) + " sums for " +
+                        std::to_string(rows.size()) + " rows");
+    }
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        if (rows[i] < 0 || std::size_t(rows[i]) >= importance_.size()) {
+            throw DataError("importance update: row " + std::to_string(rows[i]) +
+                            " is outside the table of " + std::to_string(importance_.size()));
+        }
+        const float s = sums[i] * scale;
+        check_sum(s, std::size_t(rows[i]));
+        float& omega = importance_[std::size_t(rows[i])];
+        omega = std::min(omega + s, config_.importance_cap);
+    }
 }
 
 void ImportanceWeights::save(BinaryWriter& out) const {
     out.value<std::int32_t>(row_dim_);
     out.array(importance_);
-    out.array(anchors_);
 }
 
 void ImportanceWeights::load(BinaryReader& in) {
@@ -127,14 +116,7 @@ void ImportanceWeights::load(BinaryReader& in) {
         in.fail("importance row size",
                 std::to_string(row_dim) + " differs from this map's " + std::to_string(row_dim_));
     }
-    std::vector<float> importance = in.array<float>("importance weights");
-    std::vector<float> anchors = in.array<float>("importance anchors");
-    if (anchors.size() != importance.size() * static_cast<std::size_t>(row_dim_)) {
-        in.fail("importance anchors",
-                "do not match the " + std::to_string(importance.size()) + " importance weights");
-    }
-    importance_ = std::move(importance);
-    anchors_ = std::move(anchors);
+    importance_ = in.array<float>("importance weights");
 }
 
 }  // namespace shine

@@ -79,8 +79,10 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     // every scan would change the SDF of every earlier region at once.
     if (inc.decoder_weights != "none") config_.trainer.train_decoder = false;
     config_.sampling.surface_band_m = inc.surface_band_m;
+    if (inc.active_frames < 0) throw ConfigError("incremental.active_frames must be >= 0");
     trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
     importance_ = ImportanceWeights(inc.importance, config_.octree.feature_dim);
+    if (importance_.enabled()) trainer_->enable_anchors();
 }
 
 IncrementalMapper::~IncrementalMapper() = default;
@@ -137,6 +139,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     // 4. Train on the current scan only.
     start = std::chrono::steady_clock::now();
     trainer_->reset_seconds();
+    trainer_->begin_scan();
     const ImportanceWeights* regularizer = importance_.enabled() ? &importance_ : nullptr;
     if (ray_end > ray_begin) {
         TrainStepStats last;
@@ -164,20 +167,22 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     // 5. Importance of this scan's data (Eq. (4)) and the new anchors.
     start = std::chrono::steady_clock::now();
     if (regularizer && ray_end > ray_begin) {
-        std::fill(gradient_norm_sums_.begin(), gradient_norm_sums_.end(), 0.0f);
+        RowGradientNormSums sums;
         const std::size_t samples = trainer_->accumulate_bce_gradient_norms(
-            rays, ray_begin, ray_end, frames_.size(), gradient_norm_sums_,
+            rays, ray_begin, ray_end, frames_.size(), sums,
             static_cast<std::size_t>(config_.incremental.importance_ray_stride));
         // The paper's sum over the scan's samples, divided by their number N: with the mean BCE
         // of a batch as the data loss, lambda_r * Omega is then on the scale of the data
-        // gradient whatever the scan's point count (see docs/incremental.md).
-        if (samples > 0) {
-            const float inv_n = 1.0f / static_cast<float>(samples);
-            for (float& s : gradient_norm_sums_) s *= inv_n;
-        }
-        importance_.update_importance(gradient_norm_sums_);
-        importance_.set_anchors(trainer_->feature_params());
+        // gradient whatever the scan's point count (see docs/incremental.md). The anchors need
+        // no update: the next scan snapshots each row's value when it first touches it.
+        const float inv_n = samples > 0 ? 1.0f / static_cast<float>(samples) : 1.0f;
+        importance_.update_importance_rows(sums.rows, sums.sums, inv_n);
     }
+    if (config_.incremental.active_frames > 0) {
+        trainer_->release_inactive_state(
+            static_cast<std::uint32_t>(config_.incremental.active_frames));
+    }
+    frame.optimizer_bytes = trainer_->optimizer_bytes();
     frame.importance_seconds = seconds_since(start);
     frame.total_seconds = seconds_since(frame_start);
     frame.stages[Stage::kPreprocess] = frame.preprocess_seconds;

@@ -59,7 +59,9 @@ Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConf
       config_(config),
       sampling_(sampling),
       feature_adam_(config.feature_adam, sdf.octree.feature_dim()),
-      decoder_adam_(config.decoder_adam, static_cast<int>(sdf.decoder.num_params())) {
+      decoder_adam_(config.decoder_adam, static_cast<int>(sdf.decoder.num_params())),
+      row_state_(sdf.octree.feature_dim(), /*with_anchor=*/false,
+                 sdf.octree.feature_precision() == FeaturePrecision::kFloat16) {
     if (config.batch_size < sampling.samples_per_ray()) {
         throw ConfigError("batch_size must be at least the samples per ray (" +
                           std::to_string(sampling.samples_per_ray()) + ")");
@@ -82,63 +84,41 @@ Trainer::~Trainer() = default;
 
 void Trainer::on_map_grown() {
     const std::size_t rows = sdf_.octree.num_corners();
-    const std::size_t dim = static_cast<std::size_t>(sdf_.octree.feature_dim());
-    feature_adam_.resize(rows);
+    row_state_.resize(rows);
     local_index_.resize(rows, -1);
-    const FeatureTable& table = sdf_.octree.features();
-    if (table.precision() == FeaturePrecision::kFloat32) {
-        std::vector<float>().swap(master_features_);
-        return;
-    }
-    // Rows are only ever appended: existing rows keep their unrounded master values.
-    const std::size_t known_rows = master_features_.size() / dim;
-    master_features_.resize(rows * dim);
-    for (std::size_t row = known_rows; row < rows; ++row) {
-        table.get_row(row, master_features_.data() + row * dim);
-    }
+}
+
+void Trainer::enable_anchors() {
+    if (row_state_.has_anchor()) return;
+    if (steps_taken_ > 0) throw ConfigError("Trainer::enable_anchors() after training started");
+    row_state_ =
+        FeatureRowState(sdf_.octree.feature_dim(), /*with_anchor=*/true, row_state_.has_master());
+    row_state_.resize(sdf_.octree.num_corners());
+}
+
+std::size_t Trainer::release_inactive_state(std::uint32_t keep_scans) {
+    if (keep_scans == 0 || scan_ < keep_scans) return 0;
+    return row_state_.release_unused_pages(scan_ - keep_scans + 1);
 }
 
 void Trainer::save_state(BinaryWriter& out) const {
     out.tag("trainer");
     out.value<std::uint32_t>(steps_taken_);
-    feature_adam_.save(out);
+    out.value<std::uint32_t>(scan_);
     decoder_adam_.save(out);
-    out.array(master_features_);
+    row_state_.save(out);
 }
 
 void Trainer::load_state(BinaryReader& in) {
     in.expect_tag("trainer");
     const auto steps_taken = in.value<std::uint32_t>("trainer step count");
-    feature_adam_.load(in);
+    const auto scan = in.value<std::uint32_t>("trainer scan count");
     decoder_adam_.load(in);
-    std::vector<float> master = in.array<float>("float32 master features");
-    const std::size_t rows = sdf_.octree.num_corners();
-    const std::size_t dim = static_cast<std::size_t>(sdf_.octree.feature_dim());
-    if (feature_adam_.num_rows() != rows) {
-        in.fail("feature Adam state", "has " + std::to_string(feature_adam_.num_rows()) +
-                                          " rows, the map " + std::to_string(rows));
-    }
     if (decoder_adam_.num_rows() != 1) in.fail("decoder Adam state", "is not a single row");
-    const bool half = sdf_.octree.feature_precision() == FeaturePrecision::kFloat16;
-    if (master.size() != (half ? rows * dim : 0)) {
-        in.fail("float32 master features", "hold " + std::to_string(master.size()) +
-                                               " values for a map of " + std::to_string(rows) +
-                                               " rows in " +
-                                               to_string(sdf_.octree.feature_precision()));
-    }
+    row_state_.load(in);
     steps_taken_ = steps_taken;
-    master_features_ = std::move(master);
-    local_index_.assign(rows, -1);
-}
-
-float* Trainer::mutable_feature_params() {
-    FeatureTable& table = sdf_.octree.features();
-    return table.precision() == FeaturePrecision::kFloat32 ? table.floats()
-                                                           : master_features_.data();
-}
-
-const float* Trainer::feature_params() const {
-    return const_cast<Trainer*>(this)->mutable_feature_params();
+    scan_ = scan;
+    local_index_.assign(sdf_.octree.num_corners(), -1);
 }
 
 TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::size_t ray_end,
@@ -202,9 +182,16 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
     // step Adam on the touched rows and clear their gradients.
     ++steps_taken_;
     feature_adam_.reserve_steps(steps_taken_);
-    float* params = mutable_feature_params();
     FeatureTable& table = sdf_.octree.features();
     const bool half = table.precision() == FeaturePrecision::kFloat16;
+    float* table_floats = half ? nullptr : table.floats();
+    const AdamConfig& adam = feature_adam_.config();
+    const bool regularize = regularizer != nullptr;
+    if (regularize && (!row_state_.has_anchor() || scan_ == 0)) {
+        throw ConfigError(
+            "Trainer::step() with a regulariser needs enable_anchors() and "
+            "begin_scan() first");
+    }
     tbb::parallel_for(0, kRowPartitions, [&](int p) {
         Partition& partition = partitions_[p];
         std::vector<std::int32_t>& rows = partition.touched_rows;
@@ -235,14 +222,49 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
                 for (int l = 0; l < dim; ++l) grad[l] += coefficient * h[l];
             }
         }
-        if (regularizer) {
-            partition.regularization = regularizer->add_gradient_listed(params, grads.data(), rows);
-        }
-        feature_adam_.step_listed_rows(params, grads.data(), rows);
-        for (const std::int32_t row : rows) {
-            // Mixed precision: Adam stepped the float32 master copy; the map holds its rounding.
-            if (half) table.set_row(std::size_t(row), params + std::size_t(row) * dim);
+        // Per touched row: its state block, the regulariser's gradient (Eq. (5), on the rows this
+        // iteration used: the set A of Eq. (3)) and the Adam step. Rows are in random order and
+        // the loop is bound by cache misses: the blocks of rows a few ahead are requested early.
+        double regularization = 0.0;
+        constexpr std::size_t kAhead = 4;
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            if (i + kAhead < rows.size()) {
+                const FeatureRowState::Row ahead = row_state_.touch(rows[i + kAhead], scan_);
+                __builtin_prefetch(ahead.first_moment, 1);
+                __builtin_prefetch(ahead.step, 1);
+                if (!half)
+                    __builtin_prefetch(table_floats + std::size_t(rows[i + kAhead]) * dim, 1);
+            }
+            const std::int32_t row = rows[i];
+            const FeatureRowState::Row state = row_state_.touch(row, scan_);
+            float* param;
+            if (half) {
+                // Mixed precision: Adam steps the float32 master copy, made from the map's value
+                // the first time the row is trained; the map holds its rounding.
+                param = state.master;
+                if (*state.master_valid == 0) {
+                    table.get_row(std::size_t(row), param);
+                    *state.master_valid = 1;
+                }
+            } else {
+                param = table_floats + std::size_t(row) * dim;
+            }
+            float* grad = grads.data() + i * dim;
+            if (regularize) {
+                if (*state.anchor_scan != scan_) {
+                    std::copy(param, param + dim, state.anchor);
+                    *state.anchor_scan = scan_;
+                }
+                regularization += regularizer->add_row_gradient(row, param, state.anchor, grad);
+            }
+            const std::uint32_t row_step = ++*state.step;
+            adam_update_row(param, grad, state.first_moment, state.second_moment, dim, adam,
+                            feature_adam_.reserved_bias(row_step));
+            if (half) table.set_row(std::size_t(row), param);
             local_index_[row] = -1;
+        }
+        if (regularize) {
+            partition.regularization = regularizer->config().regularization_weight * regularization;
         }
     });
     for (const Partition& partition : partitions_) stats.regularization += partition.regularization;
@@ -266,11 +288,16 @@ std::uint64_t Trainer::importance_stream_seed(std::uint64_t pass, std::uint64_t 
 
 std::size_t Trainer::accumulate_bce_gradient_norms(const RaySet& rays, std::size_t ray_begin,
                                                    std::size_t ray_end, std::uint64_t pass,
-                                                   std::vector<float>& row_sums,
+                                                   RowGradientNormSums& row_sums,
                                                    std::size_t ray_stride) {
-    row_sums.resize(sdf_.octree.num_corners(), 0.0f);
+    row_sums.rows.clear();
+    row_sums.sums.clear();
     std::size_t valid_samples = 0;
     if (ray_end <= ray_begin) return valid_samples;
+    for (Partition& partition : partitions_) {
+        partition.touched_rows.clear();
+        partition.grads.clear();  // here: one sum per touched row
+    }
     ray_stride = std::max<std::size_t>(ray_stride, 1);
     const auto start = std::chrono::steady_clock::now();
     const int per_ray = sampling_.samples_per_ray();
@@ -312,13 +339,30 @@ std::size_t Trainer::accumulate_bce_gradient_norms(const RaySet& rays, std::size
             chunk.bucket_records();
         });
         for (const Chunk& chunk : chunks_) valid_samples += chunk.valid;
+        // Each partition sums its rows' norms in block and chunk order (a compact sum per row).
         tbb::parallel_for(0, kRowPartitions, [&](int p) {
+            Partition& partition = partitions_[p];
             for (const Chunk& chunk : chunks_) {
                 for (const std::uint32_t record : chunk.records[p]) {
-                    row_sums[chunk.batch.rows[record]] += chunk.batch.coefficients[record];
+                    const std::int32_t row = chunk.batch.rows[record];
+                    std::int32_t& local = local_index_[row];
+                    if (local < 0) {
+                        local = static_cast<std::int32_t>(partition.touched_rows.size());
+                        partition.touched_rows.push_back(row);
+                        partition.grads.push_back(0.0f);
+                    }
+                    partition.grads[std::size_t(local)] += chunk.batch.coefficients[record];
                 }
             }
         });
+    }
+    for (Partition& partition : partitions_) {
+        for (std::size_t i = 0; i < partition.touched_rows.size(); ++i) {
+            local_index_[partition.touched_rows[i]] = -1;
+        }
+        row_sums.rows.insert(row_sums.rows.end(), partition.touched_rows.begin(),
+                             partition.touched_rows.end());
+        row_sums.sums.insert(row_sums.sums.end(), partition.grads.begin(), partition.grads.end());
     }
     seconds_.importance += seconds_since(start);
     return valid_samples;

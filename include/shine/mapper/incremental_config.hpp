@@ -30,6 +30,11 @@ struct IncrementalConfig {
     /// gradient norm over the scan's samples (see importance_weights.hpp), which a subsample
     /// estimates; measured in docs/performance.md.
     int importance_ray_stride = 8;
+    /// Optimiser state (Adam's moments, anchors, master copy) is kept for the rows that one of
+    /// the last `active_frames` frames trained, and dropped for the rest, so that its memory
+    /// follows the region being mapped on a long drive (feature_row_state.hpp). 0: keep it all.
+    /// The bundled 50-frame street never drops any at the default.
+    int active_frames = 50;
 };
 
 }  // namespace shine

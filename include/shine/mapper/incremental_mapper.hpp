@@ -10,7 +10,9 @@
 //      adding lambda_r * sum Omega_i |theta_i - theta*_i|^2 over the rows used (Eq. (5));
 //   5. with lambda_r > 0: one pass over the scan's samples (each ray once) adds
 //      (1/N) sum_k |dL_bce/dtheta_i| to Omega_i (capped at Omega_m, Eq. (4); N = the pass's
-//      sample count, see importance_weights.hpp), and the anchors theta* move to the features.
+//      sample count, see importance_weights.hpp); the anchors theta* are the rows' values when
+//      the next scan first touches them (the trainer snapshots them); then the optimiser state
+//      of rows no frame of the last incremental.active_frames trained is released.
 // The decoder is pretrained and frozen (models/decoder_pretrained.yaml by default); Adam's state
 // and the importance weights persist across scans. Deterministic for a seed, whatever the
 // thread count.
@@ -43,9 +45,10 @@ struct IncrementalFrameStats {
     double preprocess_seconds = 0.0;
     double allocate_seconds = 0.0;
     double normals_seconds = 0.0;
-    double train_seconds = 0.0;  ///< the scan's optimisation steps, sampling included
-    double importance_seconds = 0.0;
+    double train_seconds = 0.0;       ///< the scan's optimisation steps, sampling included
+    double importance_seconds = 0.0;  ///< includes releasing inactive optimiser state
     double total_seconds = 0.0;
+    std::size_t optimizer_bytes = 0;  ///< the trainer's state after the frame
     /// The same split by profile stage (preprocess ... importance; load is the caller's).
     StageSeconds stages;
     double bce = 0.0;             ///< last iteration's mean BCE
@@ -101,7 +104,6 @@ class IncrementalMapper {
     std::unique_ptr<Trainer> trainer_;
     ImportanceWeights importance_;
     std::deque<ScanInMap> window_;  ///< the current scan last
-    std::vector<float> gradient_norm_sums_;
     std::vector<IncrementalFrameStats> frames_;
     MappingStats stats_;
     std::uint64_t iteration_ = 0;

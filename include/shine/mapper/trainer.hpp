@@ -13,6 +13,10 @@
 // A float16 feature table is trained in mixed precision: the forward and backward passes read the
 // float16 map, Adam updates a float32 master copy held by the Trainer, and each updated row is
 // rounded back into the map, so the map is always the one that queries, baking and saving use.
+//
+// Adam's moments, the master copy and the regulariser's anchors are kept per row only where the
+// map is being trained (feature_row_state.hpp); in incremental mode, begin_scan() marks each scan
+// and release_inactive_state() drops the state of rows no recent scan touched.
 #pragma once
 
 #include <cstdint>
@@ -20,6 +24,7 @@
 
 #include "shine/model/neural_sdf.hpp"
 #include "shine/optim/adam.hpp"
+#include "shine/optim/feature_row_state.hpp"
 #include "shine/optim/importance_weights.hpp"
 #include "shine/sampling/ray_sampler.hpp"
 #include "shine/sampling/ray_set.hpp"
@@ -47,6 +52,13 @@ struct TrainerSeconds {
     double importance = 0.0;  ///< accumulate_bce_gradient_norms()
 };
 
+/// The importance pass's result: per feature row it reached, the sum of its samples' gradient
+/// norms (rows in no particular order, each once).
+struct RowGradientNormSums {
+    std::vector<std::int32_t> rows;
+    std::vector<float> sums;
+};
+
 /// Losses of one step, averaged over the valid samples.
 struct TrainStepStats {
     double bce = 0.0;
@@ -61,9 +73,18 @@ class Trainer {
     Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConfig& sampling);
     ~Trainer();
 
-    /// Call after the octree grew: sizes the optimiser state and gradient buffers (and the
-    /// float32 master copy of a float16 map; new rows start from the map's values).
+    /// Call after the octree grew: sizes the optimiser state and gradient buffers.
     void on_map_grown();
+
+    /// Keeps the anchors theta* of the importance regulariser with each row's state (incremental
+    /// mode; call before the first step). Without it step() takes no regulariser.
+    void enable_anchors();
+    /// Starts a scan (incremental mode): a row's anchor is its value when the scan first touches
+    /// it, i.e. its value at the start of the scan.
+    void begin_scan() { ++scan_; }
+    /// Drops the optimiser state of the rows (in pages of FeatureRowState::kRowsPerPage) that none
+    /// of the last `keep_scans` scans touched. Returns the number of pages released.
+    std::size_t release_inactive_state(std::uint32_t keep_scans);
 
     /// One iteration on rays drawn uniformly from [ray_begin, ray_end) of `rays`. With a
     /// `regularizer` (incremental mode) the loss adds its lambda_r * L_r over the feature rows the
@@ -72,23 +93,19 @@ class Trainer {
                         std::uint64_t iteration, const ImportanceWeights* regularizer = nullptr);
 
     /// The importance pass of paper Eq. (4): for every ray of [ray_begin, ray_end) once, draws its
-    /// samples (from the stream importance_stream_seed(pass, ray)) and adds, per feature row,
+    /// samples (from the stream importance_stream_seed(pass, ray)) and sums, per feature row,
     /// the norms |dL_bce(x_k, l_k)/dtheta_row| of each sample's BCE gradient (per sample, not
-    /// averaged; no Eikonal term) to `row_sums`, which is resized to num_corners() rows. Returns
-    /// the number of samples that fell inside the map. Changes no parameter. Deterministic for
-    /// any thread count.
+    /// averaged; no Eikonal term) into `row_sums` (replaced; only the rows reached). Returns the
+    /// number of samples that fell inside the map. Changes no parameter. Deterministic for any
+    /// thread count.
     /// With `ray_stride` > 1 only the rays ray_begin, ray_begin + ray_stride, ... are used (a
     /// subsample for the mean over the scan's samples; see IncrementalConfig).
     std::size_t accumulate_bce_gradient_norms(const RaySet& rays, std::size_t ray_begin,
                                               std::size_t ray_end, std::uint64_t pass,
-                                              std::vector<float>& row_sums,
+                                              RowGradientNormSums& row_sums,
                                               std::size_t ray_stride = 1);
     /// Seed of the random stream the importance pass samples ray `ray` of pass `pass` with.
     std::uint64_t importance_stream_seed(std::uint64_t pass, std::uint64_t ray) const;
-
-    /// The float32 feature values Adam updates: the map's table, or the master copy of a float16
-    /// map (whose rows the map holds rounded). Importance anchors are taken from these.
-    const float* feature_params() const;
 
     const TrainerConfig& config() const { return config_; }
     /// Seconds spent so far (reset with reset_seconds()).
@@ -97,15 +114,17 @@ class Trainer {
     void set_feature_learning_rate(float lr) { feature_adam_.set_learning_rate(lr); }
     void set_decoder_learning_rate(float lr) { decoder_adam_.set_learning_rate(lr); }
     std::size_t optimizer_bytes() const {
-        return feature_adam_.memory_bytes() + decoder_adam_.memory_bytes() +
-               master_features_.capacity() * sizeof(float) +
+        return row_state_.memory_bytes() + decoder_adam_.memory_bytes() +
                local_index_.capacity() * sizeof(std::int32_t);
     }
+    /// Pages of per-row optimiser state currently held.
+    std::size_t resident_state_pages() const { return row_state_.resident_pages(); }
 
-    /// Everything a later step depends on besides the SDF itself (for a checkpoint): Adam's
-    /// moments and step counts for features and decoder, and the float32 master copy of a
-    /// float16 map. load_state() expects the map to have the rows it had at save_state() (the
-    /// caller rebuilds it first) and throws IoError (via the reader) where the shapes differ.
+    /// Everything a later step depends on besides the SDF itself (for a checkpoint): the per-row
+    /// state (Adam's moments and step counts, master copy, anchors), the decoder's Adam state and
+    /// the step and scan counters. load_state() expects the map to have the rows it had at
+    /// save_state() (the caller rebuilds it first) and throws IoError (via the reader) where the
+    /// shapes differ.
     void save_state(BinaryWriter& out) const;
     void load_state(BinaryReader& in);
 
@@ -116,14 +135,13 @@ class Trainer {
     struct Chunk;
     struct Partition;
 
-    float* mutable_feature_params();
-
     NeuralSdf& sdf_;
     TrainerConfig config_;
     SamplingConfig sampling_;
-    RowAdam feature_adam_;
+    RowAdam feature_adam_;  ///< the features' Adam settings and bias corrections (no rows)
     RowAdam decoder_adam_;
-    std::vector<float> master_features_;  ///< float32 copy of a float16 table (else empty)
+    FeatureRowState row_state_;
+    std::uint32_t scan_ = 0;  ///< begin_scan() calls (incremental mode; 0 in batch mode)
     /// Per feature row, its index in its partition's touched rows during a step, else -1.
     std::vector<std::int32_t> local_index_;
     std::vector<float> decoder_grads_;

@@ -38,6 +38,10 @@ inline void adam_update(float& param, float& m, float& v, float grad, const Adam
     param -= c.learning_rate * (m * bias.inv_first) / (std::sqrt(v * bias.inv_second) + c.epsilon);
 }
 
+/// adam_update() on `dim` parameters with their moments m and v (bit-identical to it, SIMD).
+void adam_update_row(float* param, const float* grad, float* m, float* v, int dim,
+                     const AdamConfig& config, const AdamBiasCorrection& bias);
+
 /// Adam state for a parameter table of rows of `row_dim` floats that can grow.
 class RowAdam {
   public:
@@ -55,6 +59,10 @@ class RowAdam {
     /// shared state for rows whose step count stays at or below it.
     void reserve_steps(std::uint32_t max_step) {
         if (max_step > 0) bias_for_step(max_step);
+    }
+    /// The bias corrections of step `step` (1-based), which reserve_steps() must cover.
+    const AdamBiasCorrection& reserved_bias(std::uint32_t step) const {
+        return bias_by_step_[step - 1];
     }
     /// As step_rows(), but the gradient of rows[i] is row_grads[i * row_dim, (i + 1) * row_dim):
     /// a compact buffer of the listed rows only (the trainer's reduction writes it).

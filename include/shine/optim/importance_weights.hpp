@@ -49,7 +49,9 @@ struct ImportanceConfig {
 class BinaryReader;
 class BinaryWriter;
 
-/// Importance Omega and anchor theta* per row of a growing parameter table of `row_dim` floats.
+/// Importance Omega per row of a growing parameter table of `row_dim` floats. The anchors theta*
+/// are the rows' values when the current scan began; the trainer keeps them with the rest of a
+/// row's optimiser state (feature_row_state.hpp) and hands them in.
 class ImportanceWeights {
   public:
     ImportanceWeights() = default;
@@ -61,40 +63,40 @@ class ImportanceWeights {
     int row_dim() const { return row_dim_; }
     std::size_t num_rows() const { return importance_.size(); }
 
-    /// Grows to `num_rows` rows; new rows have Omega = 0 (unconstrained) and anchor 0.
+    /// Grows to `num_rows` rows; new rows have Omega = 0 (unconstrained).
     void resize(std::size_t num_rows);
 
-    /// lambda_r * L_r over `rows` for the parameter table `params` (Eq. (3)).
-    double value(const float* params, const std::vector<std::int32_t>& rows) const;
+    /// lambda_r * L_r over `rows` (Eq. (3)) for the parameter table `params` and the anchors
+    /// theta* `anchors` (tables of row_dim floats per row).
+    double value(const float* params, const float* anchors,
+                 const std::vector<std::int32_t>& rows) const;
 
     /// Adds d(lambda_r L_r)/dtheta = 2 lambda_r Omega_i (theta_i - theta*_i) to the listed rows of
     /// `grads` and returns lambda_r * L_r over them.
-    double add_gradient(const float* params, float* grads,
+    double add_gradient(const float* params, const float* anchors, float* grads,
                         const std::vector<std::int32_t>& rows) const;
-    /// As add_gradient(), but the gradient of rows[i] is row_grads[i * row_dim, (i + 1) * row_dim)
-    /// (a compact buffer of the listed rows, as the trainer's reduction writes it).
-    double add_gradient_listed(const float* params, float* row_grads,
-                               const std::vector<std::int32_t>& rows) const;
+
+    /// The same for one row (the trainer's form: the row's value, anchor and gradient are
+    /// row_dim floats each). Returns Omega_row * |theta - theta*|^2 (times lambda_r: the caller
+    /// sums and scales).
+    double add_row_gradient(std::int32_t row, const float* param, const float* anchor,
+                            float* grad) const;
 
     /// Eq. (4): Omega_i = min(Omega_i + gradient_norm_sums[i], Omega_m) for every row;
     /// `gradient_norm_sums` has one entry per row (rows beyond it are unchanged). Throws
     /// DataError if it has more entries than there are rows or a negative or non-finite entry.
     void update_importance(const std::vector<float>& gradient_norm_sums);
-
-    /// theta* = theta for every row (after a scan's training has converged).
-    void set_anchors(const float* params);
+    /// Eq. (4) for the listed rows only: Omega_rows[i] = min(Omega + sums[i] * scale, Omega_m)
+    /// (the importance pass's sparse result; `scale` is 1/N). Throws DataError as above.
+    void update_importance_rows(const std::vector<std::int32_t>& rows,
+                                const std::vector<float>& sums, float scale);
 
     float importance(std::int32_t row) const { return importance_[row]; }
     const std::vector<float>& importances() const { return importance_; }
-    const float* anchor(std::int32_t row) const {
-        return anchors_.data() + std::size_t(row) * row_dim_;
-    }
-    std::size_t memory_bytes() const {
-        return (importance_.capacity() + anchors_.capacity()) * sizeof(float);
-    }
+    std::size_t memory_bytes() const { return importance_.capacity() * sizeof(float); }
 
-    /// Omega and theta* of every row (for a checkpoint); load() replaces them, checking that
-    /// the stored rows have this table's row_dim.
+    /// Omega of every row (for a checkpoint); load() replaces them, checking that the stored
+    /// table has this one's row_dim.
     void save(BinaryWriter& out) const;
     void load(BinaryReader& in);
 
@@ -102,7 +104,6 @@ class ImportanceWeights {
     ImportanceConfig config_;
     int row_dim_ = 1;
     std::vector<float> importance_;  ///< Omega per row
-    std::vector<float> anchors_;     ///< theta*, row-major like the parameter table
 };
 
 }  // namespace shine

@@ -1,0 +1,165 @@
+#include "shine/optim/feature_row_state.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "shine/io/binary_stream.hpp"
+
+namespace shine {
+
+struct FeatureRowState::Page {
+    std::vector<float> floats;        ///< kRowsPerPage blocks of floats_per_row_
+    std::vector<std::uint32_t> ints;  ///< per row: step, anchor_scan, master_valid
+    std::atomic<std::uint32_t> last_scan{0};
+    Page(std::size_t floats_per_row)
+        : floats(kRowsPerPage * floats_per_row, 0.0f), ints(kRowsPerPage * 3, 0u) {}
+};
+
+FeatureRowState::FeatureRowState(int dim, bool with_anchor, bool with_master)
+    : dim_(dim),
+      with_anchor_(with_anchor),
+      with_master_(with_master),
+      floats_per_row_(static_cast<std::size_t>(dim) * (2 + with_anchor + with_master)) {}
+
+FeatureRowState::~FeatureRowState() {
+    for (auto& p : pages_) delete p.load();
+}
+
+FeatureRowState::FeatureRowState(FeatureRowState&& other) noexcept
+    : dim_(other.dim_),
+      with_anchor_(other.with_anchor_),
+      with_master_(other.with_master_),
+      floats_per_row_(other.floats_per_row_),
+      num_rows_(other.num_rows_),
+      pages_(std::move(other.pages_)) {
+    other.num_rows_ = 0;
+}
+
+FeatureRowState& FeatureRowState::operator=(FeatureRowState&& other) noexcept {
+    if (this != &other) {
+        for (auto& p : pages_) delete p.load();
+        dim_ = other.dim_;
+        with_anchor_ = other.with_anchor_;
+        with_master_ = other.with_master_;
+        floats_per_row_ = other.floats_per_row_;
+        num_rows_ = other.num_rows_;
+        pages_ = std::move(other.pages_);
+        other.num_rows_ = 0;
+    }
+    return *this;
+}
+
+void FeatureRowState::resize(std::size_t num_rows) {
+    num_rows_ = std::max(num_rows_, num_rows);
+    const std::size_t needed = (num_rows_ + kRowsPerPage - 1) / kRowsPerPage;
+    if (needed <= pages_.size()) return;
+    // std::atomic is not movable: grow by building a new table.
+    std::vector<std::atomic<Page*>> grown(needed);
+    for (std::size_t i = 0; i < pages_.size(); ++i) grown[i].store(pages_[i].load());
+    pages_ = std::move(grown);
+}
+
+FeatureRowState::Page* FeatureRowState::page_of(std::size_t page_index) {
+    Page* page = pages_[page_index].load(std::memory_order_acquire);
+    if (page) return page;
+    // First use: whoever installs a page first wins; the others free theirs. The content (zeros)
+    // is the same, so the result does not depend on which thread won.
+    auto fresh = std::make_unique<Page>(floats_per_row_);
+    if (pages_[page_index].compare_exchange_strong(page, fresh.get(), std::memory_order_acq_rel)) {
+        return fresh.release();
+    }
+    return page;
+}
+
+FeatureRowState::Row FeatureRowState::touch(std::int32_t row, std::uint32_t scan) {
+    const std::size_t r = static_cast<std::size_t>(row);
+    Page* page = page_of(r / kRowsPerPage);
+    if (page->last_scan.load(std::memory_order_relaxed) != scan) {
+        page->last_scan.store(scan, std::memory_order_relaxed);
+    }
+    const std::size_t slot = r % kRowsPerPage;
+    float* block = page->floats.data() + slot * floats_per_row_;
+    std::uint32_t* ints = page->ints.data() + slot * 3;
+    const std::size_t d = static_cast<std::size_t>(dim_);
+    return {block,
+            block + d,
+            with_anchor_ ? block + 2 * d : nullptr,
+            with_master_ ? block + (2 + with_anchor_) * d : nullptr,
+            ints,
+            ints + 1,
+            ints + 2};
+}
+
+std::size_t FeatureRowState::release_unused_pages(std::uint32_t oldest_kept) {
+    std::size_t released = 0;
+    for (auto& slot : pages_) {
+        Page* page = slot.load();
+        if (page && page->last_scan.load() < oldest_kept) {
+            slot.store(nullptr);
+            delete page;
+            ++released;
+        }
+    }
+    return released;
+}
+
+std::size_t FeatureRowState::resident_pages() const {
+    return static_cast<std::size_t>(std::count_if(
+        pages_.begin(), pages_.end(), [](const auto& p) { return p.load() != nullptr; }));
+}
+
+std::size_t FeatureRowState::memory_bytes() const {
+    const std::size_t page_bytes =
+        kRowsPerPage * (floats_per_row_ * sizeof(float) + 3 * sizeof(std::uint32_t));
+    return resident_pages() * page_bytes + pages_.capacity() * sizeof(std::atomic<Page*>);
+}
+
+void FeatureRowState::save(BinaryWriter& out) const {
+    out.tag("feature row state");
+    out.value<std::int32_t>(dim_);
+    out.value<std::uint8_t>(with_anchor_);
+    out.value<std::uint8_t>(with_master_);
+    out.value<std::uint64_t>(num_rows_);
+    out.value<std::uint64_t>(resident_pages());
+    for (std::size_t i = 0; i < pages_.size(); ++i) {
+        const Page* page = pages_[i].load();
+        if (!page) continue;
+        out.value<std::uint64_t>(i);
+        out.value<std::uint32_t>(page->last_scan.load());
+        out.array(page->floats);
+        out.array(page->ints);
+    }
+}
+
+void FeatureRowState::load(BinaryReader& in) {
+    in.expect_tag("feature row state");
+    const auto dim = in.value<std::int32_t>("row state feature size");
+    const bool anchor = in.value<std::uint8_t>("row state anchor flag") != 0;
+    const bool master = in.value<std::uint8_t>("row state master flag") != 0;
+    if (dim != dim_ || anchor != with_anchor_ || master != with_master_) {
+        in.fail("row state layout", "(feature size " + std::to_string(dim) + ", anchors " +
+                                        std::to_string(anchor) + ", master copy " +
+                                        std::to_string(master) + ") differs from this run's");
+    }
+    const auto rows = in.value<std::uint64_t>("row count");
+    if (rows != num_rows_) {
+        in.fail("row count",
+                std::to_string(rows) + " differs from the map's " + std::to_string(num_rows_));
+    }
+    const auto count = in.value<std::uint64_t>("page count");
+    if (count > pages_.size()) in.fail("page count", "exceeds the page table");
+    for (auto& p : pages_) delete p.exchange(nullptr);
+    for (std::uint64_t k = 0; k < count; ++k) {
+        const auto index = in.value<std::uint64_t>("page index");
+        if (index >= pages_.size() || pages_[index].load()) {
+            in.fail("page index", std::to_string(index) + " is out of range or repeated");
+        }
+        auto page = std::make_unique<Page>(floats_per_row_);
+        page->last_scan.store(in.value<std::uint32_t>("page scan"));
+        in.array_into(page->floats.data(), page->floats.size(), "page values");
+        in.array_into(page->ints.data(), page->ints.size(), "page counters");
+        pages_[index].store(page.release());
+    }
+}
+
+}  // namespace shine
