@@ -1,5 +1,7 @@
 // `shine simulate`: writes the example data set — a procedural street scanned by a simulated
-// 64-beam spinning LiDAR — in the KITTI layout, with the reference mesh for evaluation.
+// 64-beam spinning LiDAR — in the KITTI layout, with the reference mesh for evaluation; with
+// --route-km, a long drive through a procedural city instead.
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -9,6 +11,7 @@
 #include "command_registry.hpp"
 #include "shine/core/error.hpp"
 #include "shine/sim/lidar_simulator.hpp"
+#include "shine/sim/route_simulation.hpp"
 
 namespace shine::cli {
 namespace {
@@ -18,11 +21,68 @@ struct SimulateOptions {
     sim::SimulationConfig config;
     std::vector<double> origin_offset_m;  ///< E,N,U (x, y, z) added to every pose
     int threads = 0;
+    double route_km = 0.0;             ///< > 0: the city route instead of the street
+    bool route_requested = false;      ///< --route-km was given
+    bool frames_given = false;         ///< --frames was given
+    bool frame_spacing_given = false;  ///< --frame-spacing-m was given
 };
+
+/// Longest --route-km: ~5x KITTI 00; the city's scene needs ~0.55 GB of memory per km.
+constexpr double kMaxRouteKm = 20.0;
+
+std::string format_number(double value) {
+    char buffer[64];
+    std::snprintf(buffer, sizeof(buffer), "%g", value);
+    return buffer;
+}
+
+int run_route(const SimulateOptions& options, const sim::SimulationConfig& street) {
+    if (!(options.route_km > 0.0)) {
+        throw ConfigError("--route-km = " + format_number(options.route_km) +
+                          " must be > 0 (the length of the drive in km, e.g. 4 for a "
+                          "KITTI-00-like drive)");
+    }
+    if (!(options.route_km <= kMaxRouteKm)) {
+        throw ConfigError("--route-km = " + format_number(options.route_km) + " is more than " +
+                          format_number(kMaxRouteKm) +
+                          " km: the city's scene needs ~0.55 GB of memory per km (2.1 GB for 4 "
+                          "km); simulate several shorter routes (--seed) instead");
+    }
+    if (options.frames_given) {
+        throw ConfigError(
+            "--frames cannot be combined with --route-km: the route's length and "
+            "--frame-spacing-m set the number of scans");
+    }
+    sim::RouteSimulationConfig config;
+    config.seed = street.seed;
+    config.city.route_length_m = options.route_km * 1000.0;
+    config.city.street.max_edge_length_m = street.scene.max_edge_length_m;
+    if (options.frame_spacing_given) {
+        config.trajectory.frame_spacing_m = street.trajectory.frame_spacing_m;
+    }
+    config.lidar = street.lidar;
+    config.origin_offset_world_m = street.origin_offset_world_m;
+    config.show_progress = street.show_progress;
+    const sim::RouteSimulationSummary result =
+        sim::simulate_route_sequence(config, options.out_dir);
+    const sim::SimulationSummary& summary = result.sequence;
+    std::printf(
+        "wrote %s: a %.3f km drive through a city of %zu street blocks and %zu junctions "
+        "(loop %.3f km, then %.0f m again through the first street): %d scans (%zu points, "
+        "%zu..%zu per scan), poses.txt, gt_mesh.ply (%zu triangles, %zu observed), "
+        "simulation.json, README.txt in %.1f s (city %.1f s, ray-cast index %.1f s)\n",
+        options.out_dir.c_str(), result.route_length_m / 1000.0, result.num_streets,
+        result.num_junctions, result.loop_length_m / 1000.0,
+        result.route_length_m - result.loop_length_m, summary.num_frames, summary.total_points,
+        summary.min_points_per_scan, summary.max_points_per_scan, summary.num_triangles,
+        summary.num_observed_triangles, summary.seconds, result.scene_seconds,
+        result.index_seconds);
+    return 0;
+}
 
 int run_simulate(const SimulateOptions& options) {
     const auto& c = options.config;
-    if (c.num_frames < 1) {
+    if (!options.route_requested && c.num_frames < 1) {
         throw ConfigError("--frames = " + std::to_string(c.num_frames) + " must be >= 1");
     }
     if (!(c.lidar.range_noise_sigma_m >= 0.0)) {
@@ -40,6 +100,7 @@ int run_simulate(const SimulateOptions& options) {
             options.origin_offset_m[0], options.origin_offset_m[1], options.origin_offset_m[2]);
     }
     const auto thread_limit = limit_threads(options.threads);
+    if (options.route_requested) return run_route(options, config);
     const sim::SimulationSummary summary = sim::simulate_sequence(config, options.out_dir);
     std::printf(
         "wrote %s: %d scans (%zu points, %zu..%zu per scan), poses.txt, gt_mesh.ply "
@@ -58,22 +119,29 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
         "Simulate the example data: a procedural street scanned by a 64-beam spinning LiDAR on a "
         "driving car. Writes DIR/velodyne/NNNNNN.bin (sensor frame), DIR/poses.txt "
         "(T_world_sensor), DIR/gt_mesh.ply (reference, observed faces marked), "
-        "DIR/simulation.json.");
+        "DIR/simulation.json. With --route-km: a long drive through a procedural city that ends "
+        "by driving its first street again (a loop closure).");
     cmd->add_option("-o,--output", options->out_dir, "output directory (created if missing)")
         ->required();
-    cmd->add_option("--frames", c.num_frames, "number of scans (>= 1)")
-        ->check(CLI::Range(1, 100000))
-        ->capture_default_str();
+    CLI::Option* frames = cmd->add_option("--frames", c.num_frames, "number of scans (>= 1)")
+                              ->check(CLI::Range(1, 100000))
+                              ->capture_default_str();
     cmd->add_option("--seed", c.seed, "seed of the street layout, trajectory and noise")
         ->capture_default_str();
     cmd->add_option("--noise-m", c.lidar.range_noise_sigma_m,
                     "standard deviation of Gaussian range noise, m (>= 0)")
         ->check(CLI::Range(0.0, 10.0))
         ->capture_default_str();
-    cmd->add_option("--frame-spacing-m", c.trajectory.frame_spacing_m,
-                    "distance driven between scans, m")
-        ->check(CLI::Range(0.01, 100.0))
-        ->capture_default_str();
+    CLI::Option* frame_spacing =
+        cmd->add_option("--frame-spacing-m,--scan-spacing-m", c.trajectory.frame_spacing_m,
+                        "distance driven between scans, m (1.6 with --route-km)")
+            ->check(CLI::Range(0.01, 100.0))
+            ->capture_default_str();
+    CLI::Option* route = cmd->add_option(
+        "--route-km", options->route_km,
+        "instead of the street: drive this many km (<= 20) through a procedural city of varied "
+        "streets, ending with a loop back through the first street; 4 is like KITTI 00 (2501 "
+        "scans 1.6 m apart)");
     cmd->add_option("--max-range-m", c.lidar.max_range_m, "maximum LiDAR range, m")
         ->check(CLI::Range(2.0, 1000.0))
         ->capture_default_str();
@@ -93,7 +161,12 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
     cmd->add_flag(
         "--no-progress", [options](std::int64_t) { options->config.show_progress = false; },
         "do not draw the progress line");
-    cmd->callback([options, &action] { action = [options] { return run_simulate(*options); }; });
+    cmd->callback([options, &action, frames, frame_spacing, route] {
+        options->frames_given = frames->count() > 0;
+        options->frame_spacing_given = frame_spacing->count() > 0;
+        options->route_requested = route->count() > 0;
+        action = [options] { return run_simulate(*options); };
+    });
 });
 
 }  // namespace

@@ -6,10 +6,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <regex>
 #include <sstream>
 #include <string>
 
+#include "sequence_files.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
@@ -29,63 +29,15 @@ constexpr double kDegToRad = M_PI / 180.0;
 /// Independent random streams of a simulation (the scene uses the seed itself).
 enum Stream : std::uint64_t { kTrajectory = 0x100, kNoise = 0x200 };
 
-std::string json_number(double value) {
-    char buffer[64];
-    std::snprintf(buffer, sizeof(buffer), "%.10g", value);
-    return buffer;
-}
+using sequence_internal::format_frame;
+using sequence_internal::json_number;
+using sequence_internal::json_number_exact;
 
-/// A double that reads back exactly (offsets of 5e6 m with millimetres need 10+ digits).
-std::string json_number_exact(double value) {
-    char buffer[64];
-    std::snprintf(buffer, sizeof(buffer), "%.17g", value);
-    return buffer;
-}
-
-std::string format_frame(int frame) {
-    char buffer[32];
-    std::snprintf(buffer, sizeof(buffer), "%06d.bin", frame);
-    return buffer;
-}
-
-}  // namespace lidar_internal
-
-using namespace lidar_internal;
-
-void validate(const LidarConfig& c) {
-    auto require = [](bool ok, const std::string& key, double value, const std::string& rule) {
-        if (!ok) throw ConfigError("lidar: " + key + " = " + std::to_string(value) + " " + rule);
-    };
-    require(c.num_beams >= 1 && c.num_beams <= 1024, "num_beams", c.num_beams,
-            "must be in [1, 1024]");
-    require(c.azimuth_steps >= 1 && c.azimuth_steps <= 100000, "azimuth_steps", c.azimuth_steps,
-            "must be in [1, 100000]");
-    require(c.elevation_max_deg <= 90.0 && c.elevation_max_deg >= -90.0, "elevation_max_deg",
-            c.elevation_max_deg, "must be in [-90, 90]");
-    require(c.elevation_min_deg >= -90.0 && c.elevation_min_deg <= c.elevation_max_deg,
-            "elevation_min_deg", c.elevation_min_deg, "must be in [-90, elevation_max_deg]");
-    require(c.min_range_m >= 0.0, "min_range_m", c.min_range_m, "must be >= 0");
-    require(c.max_range_m > c.min_range_m && std::isfinite(c.max_range_m), "max_range_m",
-            c.max_range_m, "must be finite and > min_range_m");
-    require(c.range_noise_sigma_m >= 0.0 && c.range_noise_sigma_m <= 10.0, "range_noise_sigma_m",
-            c.range_noise_sigma_m, "must be in [0, 10]");
-}
-
-Eigen::Vector3d lidar_ray_direction(const LidarConfig& config, int beam, int azimuth_step) {
-    const double elevation_deg =
-        config.num_beams == 1
-            ? config.elevation_max_deg
-            : config.elevation_max_deg - (config.elevation_max_deg - config.elevation_min_deg) *
-                                             beam / (config.num_beams - 1);
-    const double elevation = elevation_deg * kDegToRad;
-    const double azimuth = 2.0 * M_PI * azimuth_step / config.azimuth_steps;
-    return Eigen::Vector3d(std::cos(elevation) * std::cos(azimuth),
-                           std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
-}
-
-LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
-                        const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed) {
-    validate(config);
+/// Casts the rays of one scan against `caster` (a RayCaster or a BlockSelection), in parallel; the
+/// range noise of ray i is drawn from a generator seeded by (noise_seed, i).
+template <class Caster>
+LidarScan cast_scan(const Caster& caster, const LidarConfig& config,
+                    const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed) {
     const std::size_t num_rays =
         static_cast<std::size_t>(config.num_beams) * static_cast<std::size_t>(config.azimuth_steps);
     std::vector<double> ranges(num_rays, -1.0);
@@ -129,6 +81,55 @@ LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
     return scan;
 }
 
+}  // namespace lidar_internal
+
+using namespace lidar_internal;
+
+void validate(const LidarConfig& c) {
+    auto require = [](bool ok, const std::string& key, double value, const std::string& rule) {
+        if (!ok) throw ConfigError("lidar: " + key + " = " + std::to_string(value) + " " + rule);
+    };
+    require(c.num_beams >= 1 && c.num_beams <= 1024, "num_beams", c.num_beams,
+            "must be in [1, 1024]");
+    require(c.azimuth_steps >= 1 && c.azimuth_steps <= 100000, "azimuth_steps", c.azimuth_steps,
+            "must be in [1, 100000]");
+    require(c.elevation_max_deg <= 90.0 && c.elevation_max_deg >= -90.0, "elevation_max_deg",
+            c.elevation_max_deg, "must be in [-90, 90]");
+    require(c.elevation_min_deg >= -90.0 && c.elevation_min_deg <= c.elevation_max_deg,
+            "elevation_min_deg", c.elevation_min_deg, "must be in [-90, elevation_max_deg]");
+    require(c.min_range_m >= 0.0, "min_range_m", c.min_range_m, "must be >= 0");
+    require(c.max_range_m > c.min_range_m && std::isfinite(c.max_range_m), "max_range_m",
+            c.max_range_m, "must be finite and > min_range_m");
+    require(c.range_noise_sigma_m >= 0.0 && c.range_noise_sigma_m <= 10.0, "range_noise_sigma_m",
+            c.range_noise_sigma_m, "must be in [0, 10]");
+}
+
+Eigen::Vector3d lidar_ray_direction(const LidarConfig& config, int beam, int azimuth_step) {
+    const double elevation_deg =
+        config.num_beams == 1
+            ? config.elevation_max_deg
+            : config.elevation_max_deg - (config.elevation_max_deg - config.elevation_min_deg) *
+                                             beam / (config.num_beams - 1);
+    const double elevation = elevation_deg * kDegToRad;
+    const double azimuth = 2.0 * M_PI * azimuth_step / config.azimuth_steps;
+    return Eigen::Vector3d(std::cos(elevation) * std::cos(azimuth),
+                           std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+}
+
+LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
+                        const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed) {
+    validate(config);
+    return cast_scan(caster, config, T_world_sensor, noise_seed);
+}
+
+LidarScan simulate_scan(const BlockRayCaster& caster, const LidarConfig& config,
+                        const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed) {
+    validate(config);
+    // Only blocks within the sensor's range can return a point.
+    const BlockSelection near = caster.select(T_world_sensor.translation(), config.max_range_m);
+    return cast_scan(near, config, T_world_sensor, noise_seed);
+}
+
 void validate(const SimulationConfig& config) {
     if (config.num_frames < 1 || config.num_frames > 100000) {
         throw ConfigError("simulation: num_frames = " + std::to_string(config.num_frames) +
@@ -168,18 +169,7 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
     const fs::path velodyne_dir = out_dir / "velodyne";
     ensure_directory(velodyne_dir);
     // Remove scans of an earlier, longer run so that scans and poses.txt stay consistent.
-    const std::regex scan_name(R"(\d{6}\.bin)");
-    std::error_code ec;
-    for (const auto& entry : fs::directory_iterator(velodyne_dir)) {
-        const std::string name = entry.path().filename().string();
-        if (std::regex_match(name, scan_name) &&
-            std::stoi(name.substr(0, 6)) >= config.num_frames) {
-            if (!fs::remove(entry.path(), ec) && ec) {
-                throw IoError("cannot remove stale scan " + entry.path().string() + ": " +
-                              ec.message() + "; delete it or choose another output directory");
-            }
-        }
-    }
+    sequence_internal::remove_stale_scans(velodyne_dir, config.num_frames);
 
     SimulationSummary summary;
     summary.num_frames = config.num_frames;

@@ -187,19 +187,30 @@ bool intersect_ray_triangle(const Eigen::Vector3d& origin, const Eigen::Vector3d
     return true;
 }
 
-RayCaster::RayCaster(const TriangleMesh& mesh) {
-    const std::size_t n = mesh.triangles.size();
-    if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+RayCaster::RayCaster(const TriangleMesh& mesh) : RayCaster(mesh, 0, mesh.triangles.size()) {}
+
+RayCaster::RayCaster(const TriangleMesh& mesh, std::size_t first_triangle,
+                     std::size_t num_triangles) {
+    if (first_triangle > mesh.triangles.size() ||
+        num_triangles > mesh.triangles.size() - first_triangle) {
+        throw ConfigError("RayCaster: triangles [" + std::to_string(first_triangle) + ", " +
+                          std::to_string(first_triangle + num_triangles) +
+                          ") are not all in a mesh of " + std::to_string(mesh.triangles.size()) +
+                          " triangles");
+    }
+    if (mesh.triangles.size() >
+        static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
         throw ConfigError("RayCaster: more than 2^31 triangles are not supported");
     }
+    const std::size_t n = num_triangles;
     const auto n_vertices = static_cast<int>(mesh.vertices.size());
     std::vector<Primitive> primitives(n);
     for (std::size_t i = 0; i < n; ++i) {
-        const Eigen::Vector3i& t = mesh.triangles[i];
+        const Eigen::Vector3i& t = mesh.triangles[first_triangle + i];
         Primitive& p = primitives[i];
         for (int k = 0; k < 3; ++k) {
             if (t[k] < 0 || t[k] >= n_vertices) {
-                throw ConfigError("RayCaster: triangle " + std::to_string(i) +
+                throw ConfigError("RayCaster: triangle " + std::to_string(first_triangle + i) +
                                   " has vertex index " + std::to_string(t[k]) +
                                   " but the mesh has " + std::to_string(n_vertices) + " vertices");
             }
@@ -235,14 +246,25 @@ RayCaster::RayCaster(const TriangleMesh& mesh) {
         node.count = static_cast<std::uint16_t>(builder.node_info[i][1]);
         node.axis = static_cast<std::uint16_t>(builder.node_info[i][2]);
     }
-    triangle_ids_ = order;
     corners_.resize(9 * n);
     for (std::size_t slot = 0; slot < n; ++slot) {
-        const Eigen::Vector3i& t = mesh.triangles[order[slot]];
+        const Eigen::Vector3i& t = mesh.triangles[first_triangle + order[slot]];
         for (int k = 0; k < 3; ++k) {
             for (int a = 0; a < 3; ++a) corners_[9 * slot + 3 * k + a] = mesh.vertices[t[k]][a];
         }
     }
+    // Slots name triangles by their index in the whole mesh.
+    triangle_ids_.resize(n);
+    for (std::size_t slot = 0; slot < n; ++slot) {
+        triangle_ids_[slot] = static_cast<std::int32_t>(first_triangle) + order[slot];
+    }
+}
+
+Eigen::AlignedBox3f RayCaster::bounds() const {
+    if (nodes_.empty()) return Eigen::AlignedBox3f();  // empty box
+    const Node& root = nodes_[0];
+    return Eigen::AlignedBox3f(Eigen::Vector3f(root.lower[0], root.lower[1], root.lower[2]),
+                               Eigen::Vector3f(root.upper[0], root.upper[1], root.upper[2]));
 }
 
 void RayCaster::test_leaf(const Node& node, const Ray& ray, double t_min_m, RayHit& best) const {

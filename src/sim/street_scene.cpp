@@ -121,7 +121,8 @@ std::vector<std::vector<Eigen::Vector2f>> add_buildings(const StreetSceneConfig&
         double width = rng.uniform(8.0, 22.0);
         if (x + width > layout.x1 - 0.5) width = layout.x1 - 0.5 - x;
         if (width < 6.0) break;
-        const double max_setback = std::min(2.5, config.lot_depth_m - 8.5);
+        const double max_setback =
+            std::min(config.building_setback_max_m, config.lot_depth_m - 8.5);
         const double setback = rng.uniform(0.0, max_setback);
         const double depth = rng.uniform(8.0, std::min(14.0, config.lot_depth_m - setback - 0.5));
         const double height =
@@ -478,6 +479,8 @@ void validate(const StreetSceneConfig& c) {
             "must be >= 2");
     require(c.building_height_max_m >= c.building_height_min_m, "building_height_max_m",
             c.building_height_max_m, "must be >= building_height_min_m");
+    require(c.building_setback_max_m >= 0.0 && c.building_setback_max_m <= 100.0,
+            "building_setback_max_m", c.building_setback_max_m, "must be in [0, 100]");
     require(c.building_gap_min_m > 0.0, "building_gap_min_m", c.building_gap_min_m, "must be > 0");
     require(c.building_gap_max_m >= c.building_gap_min_m, "building_gap_max_m",
             c.building_gap_max_m, "must be >= building_gap_min_m");

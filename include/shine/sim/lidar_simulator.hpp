@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "shine/sim/block_ray_caster.hpp"
 #include "shine/sim/drive_trajectory.hpp"
 #include "shine/sim/ray_caster.hpp"
 #include "shine/sim/street_scene.hpp"
@@ -45,6 +46,11 @@ struct LidarScan {
 /// drawn from a generator seeded by (noise_seed, i), so the scan is identical for any thread
 /// count and schedule.
 LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
+                        const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed);
+
+/// Same for a scene in blocks (a city): each ray is cast against the blocks within max_range_m of
+/// the sensor only. Gives the scan one RayCaster over the whole mesh would give.
+LidarScan simulate_scan(const BlockRayCaster& caster, const LidarConfig& config,
                         const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed);
 
 /// Everything `shine simulate` does.

@@ -38,6 +38,12 @@ class RayCaster {
     /// ConfigError if the mesh has an out-of-range vertex index or a non-finite vertex.
     explicit RayCaster(const TriangleMesh& mesh);
 
+    /// BVH over triangles [first_triangle, first_triangle + num_triangles) of `mesh` only (one
+    /// block of a large scene, see BlockRayCaster); hits report the triangle's index in `mesh`, and
+    /// ties go to the lowest such index, so blocks agree with one BVH over the whole mesh. Throws
+    /// ConfigError as above, or if the range exceeds the mesh.
+    RayCaster(const TriangleMesh& mesh, std::size_t first_triangle, std::size_t num_triangles);
+
     /// Closest hit of the ray origin_m + t * direction_unit with t in [t_min_m, t_max_m];
     /// `direction_unit` must have unit length for distance_m to be in metres.
     RayHit cast(const Eigen::Vector3d& origin_m, const Eigen::Vector3d& direction_unit,
@@ -48,6 +54,9 @@ class RayCaster {
     RayHit cast_brute_force(const Eigen::Vector3d& origin_m, const Eigen::Vector3d& direction_unit,
                             double t_min_m = 0.0,
                             double t_max_m = std::numeric_limits<double>::infinity()) const;
+
+    /// Box around all triangles (slightly padded); empty (min > max) without triangles.
+    Eigen::AlignedBox3f bounds() const;
 
     std::size_t num_triangles() const { return triangle_ids_.size(); }
     std::size_t num_nodes() const { return nodes_.size(); }

@@ -30,6 +30,8 @@ struct StreetSceneConfig {
     double lot_depth_m = 17.0;      ///< ground beyond each sidewalk that holds the buildings
     double building_height_min_m = 5.0;  ///< building heights are drawn in [min, max]
     double building_height_max_m = 20.0;
+    double building_setback_max_m = 2.5;  ///< setbacks from the sidewalk are drawn in [0, this]
+                                          ///< (at most lot_depth_m - 8.5)
     double building_gap_min_m = 1.5;  ///< gap between neighbouring buildings, drawn in [min, max]
     double building_gap_max_m = 7.0;
     double tree_spacing_m = 11.0;        ///< mean distance between trees along each sidewalk
