@@ -35,47 +35,6 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
     const std::uint32_t mask_bit = 1u << config.mask_level;
     const std::vector<Eigen::Vector3i> cells = sdf.octree.cells(config.mask_level);
 
-    // Per block of cells, evaluate the voxels whose sample point lies inside the cell: voxel
-    // indices i with cell*leaf <= i*voxel < (cell+1)*leaf, so every voxel belongs to one cell.
-    struct Value {
-        openvdb::Coord ijk;
-        float sdf_m;
-    };
-    constexpr std::size_t kBlock = 256;
-    const std::size_t num_blocks = (cells.size() + kBlock - 1) / kBlock;
-    std::vector<std::vector<Value>> block_values(num_blocks);
-    const int dim = sdf.octree.feature_dim();
-    tbb::parallel_for(std::size_t(0), num_blocks, [&](std::size_t block) {
-        CellLookup lookup(sdf.octree);
-        DecoderWorkspace ws;
-        sdf.decoder.prepare(ws);
-        EncodedPoint encoded;
-        float feature[kMaxFeatureDim];
-        auto& values = block_values[block];
-        const std::size_t end = std::min(cells.size(), (block + 1) * kBlock);
-        for (std::size_t c = block * kBlock; c < end; ++c) {
-            int lo[3], hi[3];
-            for (int a = 0; a < 3; ++a) {
-                lo[a] = static_cast<int>(std::ceil(cells[c][a] * leaf_m / voxel_m - 1e-9));
-                hi[a] = static_cast<int>(std::ceil((cells[c][a] + 1) * leaf_m / voxel_m - 1e-9));
-            }
-            for (int i = lo[0]; i < hi[0]; ++i) {
-                for (int j = lo[1]; j < hi[1]; ++j) {
-                    for (int k = lo[2]; k < hi[2]; ++k) {
-                        const Eigen::Vector3f p(static_cast<float>(i * voxel_m),
-                                                static_cast<float>(j * voxel_m),
-                                                static_cast<float>(k * voxel_m));
-                        encode_point(lookup, sdf.octree, p, false, encoded);
-                        if (!(encoded.level_mask & mask_bit)) continue;
-                        gather_feature(encoded, sdf.octree.features().data(), dim, feature);
-                        values.push_back(
-                            {openvdb::Coord(i, j, k), sdf.decoder.forward(feature, ws)});
-                    }
-                }
-            }
-        }
-    });
-
     auto grid = openvdb::FloatGrid::create(background_m);
     // The grid stays in the map frame (index * voxel_m); the map frame's world position is the
     // shine_origin_world_m metadata below. A world-frame transform would put far-away (UTM) maps
@@ -85,9 +44,59 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
     grid->setName("surface");
     std::size_t evaluated = 0;
     openvdb::MaskGrid evaluated_mask;
-    {
-        auto accessor = grid->getAccessor();
-        auto mask = evaluated_mask.getAccessor();
+
+    // Per block of cells, evaluate the voxels whose sample point lies inside the cell: voxel
+    // indices i with cell*leaf <= i*voxel < (cell+1)*leaf, so every voxel belongs to one cell.
+    // The blocks are evaluated in parallel a region at a time (kBlocksPerRegion blocks of cells,
+    // consecutive in the octree's spatial order) and each region's values go into the grid before
+    // the next is evaluated: the evaluated values of the whole map are never held at once, so
+    // the bake of a long drive needs the grid's memory, not a copy of every sample on top.
+    struct Value {
+        openvdb::Coord ijk;
+        float sdf_m;
+    };
+    constexpr std::size_t kBlock = 256;
+    constexpr std::size_t kBlocksPerRegion = 512;
+    const std::size_t num_blocks = (cells.size() + kBlock - 1) / kBlock;
+    const int dim = sdf.octree.feature_dim();
+    std::vector<std::vector<Value>> block_values;
+    auto accessor = grid->getAccessor();
+    auto mask = evaluated_mask.getAccessor();
+    for (std::size_t first_block = 0; first_block < num_blocks; first_block += kBlocksPerRegion) {
+        const std::size_t region_blocks = std::min(kBlocksPerRegion, num_blocks - first_block);
+        block_values.assign(region_blocks, {});
+        tbb::parallel_for(std::size_t(0), region_blocks, [&](std::size_t b) {
+            const std::size_t block = first_block + b;
+            CellLookup lookup(sdf.octree);
+            DecoderWorkspace ws;
+            sdf.decoder.prepare(ws);
+            EncodedPoint encoded;
+            float feature[kMaxFeatureDim];
+            auto& values = block_values[b];
+            const std::size_t end = std::min(cells.size(), (block + 1) * kBlock);
+            for (std::size_t c = block * kBlock; c < end; ++c) {
+                int lo[3], hi[3];
+                for (int a = 0; a < 3; ++a) {
+                    lo[a] = static_cast<int>(std::ceil(cells[c][a] * leaf_m / voxel_m - 1e-9));
+                    hi[a] =
+                        static_cast<int>(std::ceil((cells[c][a] + 1) * leaf_m / voxel_m - 1e-9));
+                }
+                for (int i = lo[0]; i < hi[0]; ++i) {
+                    for (int j = lo[1]; j < hi[1]; ++j) {
+                        for (int k = lo[2]; k < hi[2]; ++k) {
+                            const Eigen::Vector3f p(static_cast<float>(i * voxel_m),
+                                                    static_cast<float>(j * voxel_m),
+                                                    static_cast<float>(k * voxel_m));
+                            encode_point(lookup, sdf.octree, p, false, encoded);
+                            if (!(encoded.level_mask & mask_bit)) continue;
+                            gather_feature(encoded, sdf.octree.features().data(), dim, feature);
+                            values.push_back(
+                                {openvdb::Coord(i, j, k), sdf.decoder.forward(feature, ws)});
+                        }
+                    }
+                }
+            }
+        });
         for (const auto& values : block_values) {
             evaluated += values.size();
             for (const auto& v : values) {
@@ -100,6 +109,8 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
             }
         }
     }
+    block_values.clear();
+    block_values.shrink_to_fit();
     openvdb::tools::signedFloodFill(grid->tree());
     // Mesh extraction (OpenVDB's and Blender's) makes a polygon wherever an active voxel and a
     // neighbour differ in sign. Outside the evaluated region the flood fill's sign is a guess, and
@@ -109,20 +120,19 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
     // crossing remain, a skirt of at most one voxel.
     {
         std::vector<std::pair<openvdb::Coord, float>> shell;
-        auto mask = evaluated_mask.getConstAccessor();
+        auto done = evaluated_mask.getConstAccessor();
         for (auto it = grid->cbeginValueOn(); it; ++it) {
             const openvdb::Coord c = it.getCoord();
             for (int axis = 0; axis < 3; ++axis) {
                 for (int step : {-1, 1}) {
                     openvdb::Coord n = c;
                     n[axis] += step;
-                    if (!mask.isValueOn(n)) shell.emplace_back(n, *it);
+                    if (!done.isValueOn(n)) shell.emplace_back(n, *it);
                 }
             }
         }
         std::sort(shell.begin(), shell.end(),
                   [](const auto& a, const auto& b) { return a.first < b.first; });
-        auto accessor = grid->getAccessor();
         for (std::size_t i = 0; i < shell.size();) {
             float sum = 0.0f;
             std::size_t j = i;
