@@ -9,6 +9,7 @@
 
 #include "cli_common.hpp"
 #include "command_registry.hpp"
+#include "product_stats.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
@@ -262,7 +263,6 @@ int run_map(const MapOptions& given_options) {
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();
-    const BakeStats& bake_stats = products.bake;
     const TriangleMesh& mesh = products.mesh;
     const double save_seconds = products.save_seconds;
     const double bake_seconds = products.bake_seconds;
@@ -298,18 +298,7 @@ int run_map(const MapOptions& given_options) {
                                                 stats.normals_seconds + stats.train_seconds) /
                                                    static_cast<double>(stats.frames)
                                              : 0.0;
-    json["map"] = {{"corners", sdf.octree.num_corners()},
-                   {"feature_precision", to_string(sdf.octree.feature_precision())},
-                   {"feature_bytes", sdf.octree.feature_bytes()},
-                   {"structure_bytes", sdf.octree.structure_bytes()},
-                   {"decoder_bytes", sdf.decoder.num_params() * sizeof(float)},
-                   {"map_bytes", sdf.memory_bytes()},
-                   {"file_bytes", file_bytes(out / "map.vdb")}};
-    json["surface"] = {{"voxel_size_m", bake_stats.voxel_size_m},
-                       {"active_voxels", bake_stats.active_voxels},
-                       {"mem_bytes", products.surface_mem_bytes},
-                       {"file_bytes", file_bytes(out / "surface.vdb")}};
-    json["mesh"] = {{"vertices", mesh.vertices.size()}, {"triangles", mesh.triangles.size()}};
+    add_product_stats(json, sdf, products, out);
     json["loss"] = {{"bce", stats.final_bce}, {"eikonal", stats.final_eikonal}};
     if (incremental) add_incremental_stats(*incremental_map, json);
     const StageProfile& profile = incremental ? incremental_map->profile : batch_map->profile;

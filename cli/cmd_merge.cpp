@@ -12,6 +12,7 @@
 
 #include "cli_common.hpp"
 #include "command_registry.hpp"
+#include "product_stats.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/eval/mesh_metrics.hpp"
@@ -94,19 +95,7 @@ int run_merge(const MergeOptions& opt) {
                               sdf.origin_world_m.z()};
     json["leaf_size_m"] = sdf.octree.config().leaf_size_m;
     json["fallback_corners"] = merged.stats.fallback_corners;
-    json["map"] = {{"corners", sdf.octree.num_corners()},
-                   {"feature_precision", to_string(sdf.octree.feature_precision())},
-                   {"feature_bytes", sdf.octree.feature_bytes()},
-                   {"structure_bytes", sdf.octree.structure_bytes()},
-                   {"decoder_bytes", sdf.decoder.num_params() * sizeof(float)},
-                   {"map_bytes", sdf.memory_bytes()},
-                   {"file_bytes", file_bytes(out / "map.vdb")}};
-    json["surface"] = {{"voxel_size_m", products.bake.voxel_size_m},
-                       {"active_voxels", products.bake.active_voxels},
-                       {"mem_bytes", products.surface_mem_bytes},
-                       {"file_bytes", file_bytes(out / "surface.vdb")}};
-    json["mesh"] = {{"vertices", products.mesh.vertices.size()},
-                    {"triangles", products.mesh.triangles.size()}};
+    add_product_stats(json, sdf, products, out);
     json["seconds"] = {{"merge", merge_seconds},
                        {"save_map", products.save_seconds},
                        {"bake", products.bake_seconds},

@@ -174,32 +174,12 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
     SimulationSummary summary;
     summary.num_frames = config.num_frames;
     summary.num_triangles = scene.mesh.triangles.size();
-    summary.min_points_per_scan = static_cast<std::size_t>(-1);
-    std::vector<std::uint8_t> observed(scene.mesh.triangles.size(), 0);
-    Progress progress("simulate", static_cast<std::size_t>(config.num_frames),
-                      config.show_progress);
-    for (int frame = 0; frame < config.num_frames; ++frame) {
-        const LidarScan scan =
-            simulate_scan(caster, config.lidar, poses[frame],
-                          derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame)));
-        write_kitti_bin(velodyne_dir / format_frame(frame), scan.points_sensor);
-        for (const std::int32_t id : scan.triangle_ids) observed[id] = 1;
-        const std::size_t n = scan.points_sensor.size();
-        summary.total_points += n;
-        summary.min_points_per_scan = std::min(summary.min_points_per_scan, n);
-        summary.max_points_per_scan = std::max(summary.max_points_per_scan, n);
-        progress.update(static_cast<std::size_t>(frame + 1), std::to_string(n) + " points");
-    }
-    progress.finish(std::to_string(summary.total_points) + " points");
-    std::vector<Eigen::Isometry3d> poses_world = poses;
-    for (Eigen::Isometry3d& T_world_sensor : poses_world) {
-        T_world_sensor.translation() += config.origin_offset_world_m;
-    }
-    write_kitti_poses(out_dir / "poses.txt", poses_world);
-
-    for (const std::uint8_t o : observed) summary.num_observed_triangles += o;
-    scene.mesh.face_observed = std::move(observed);
-    scene.mesh.origin_world_m = config.origin_offset_world_m;
+    sequence_internal::simulate_and_write_scans(
+        caster, config.lidar, poses,
+        [&](int frame) {
+            return derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame));
+        },
+        config.origin_offset_world_m, config.show_progress, out_dir, scene.mesh, summary);
     write_ply_mesh(out_dir / "gt_mesh.ply", scene.mesh);
 
     // Parameters, for people (README.txt) and programs (simulation.json).

@@ -81,37 +81,18 @@ RouteSimulationSummary simulate_route_sequence(const RouteSimulationConfig& conf
     ensure_directory(velodyne_dir);
     sequence_internal::remove_stale_scans(velodyne_dir, num_frames);
 
-    summary.min_points_per_scan = static_cast<std::size_t>(-1);
-    std::vector<std::uint8_t> observed(mesh.triangles.size(), 0);
     {
         // The BVHs live only while scanning: writing gt_mesh.ply needs a buffer of the file's size.
         phase_start = std::chrono::steady_clock::now();
         const BlockRayCaster caster(mesh, city.blocks, config.show_progress);
         result.index_seconds = seconds_since(phase_start);
-        Progress progress("simulate", static_cast<std::size_t>(num_frames), config.show_progress);
-        for (int frame = 0; frame < num_frames; ++frame) {
-            const LidarScan scan =
-                simulate_scan(caster, config.lidar, poses[frame],
-                              derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame)));
-            write_kitti_bin(velodyne_dir / format_frame(frame), scan.points_sensor);
-            for (const std::int32_t id : scan.triangle_ids) observed[id] = 1;
-            const std::size_t n = scan.points_sensor.size();
-            summary.total_points += n;
-            summary.min_points_per_scan = std::min(summary.min_points_per_scan, n);
-            summary.max_points_per_scan = std::max(summary.max_points_per_scan, n);
-            progress.update(static_cast<std::size_t>(frame + 1), std::to_string(n) + " points");
-        }
-        progress.finish(std::to_string(summary.total_points) + " points");
+        sequence_internal::simulate_and_write_scans(
+            caster, config.lidar, poses,
+            [&](int frame) {
+                return derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame));
+            },
+            config.origin_offset_world_m, config.show_progress, out_dir, mesh, summary);
     }
-    std::vector<Eigen::Isometry3d> poses_world = poses;
-    for (Eigen::Isometry3d& T_world_sensor : poses_world) {
-        T_world_sensor.translation() += config.origin_offset_world_m;
-    }
-    write_kitti_poses(out_dir / "poses.txt", poses_world);
-
-    for (const std::uint8_t o : observed) summary.num_observed_triangles += o;
-    mesh.face_observed = std::move(observed);
-    mesh.origin_world_m = config.origin_offset_world_m;
     write_ply_mesh(out_dir / "gt_mesh.ply", mesh);
 
     // Parameters, for people (README.txt) and programs (simulation.json).
