@@ -1,7 +1,9 @@
 // Ctrl-C for long runs: while a StopOnSignal object is alive, the first SIGINT or SIGTERM does
 // not kill the process but asks it to stop; the mapping loops poll stop_requested() after every
-// step, write a checkpoint and leave with shine::Interrupted. A second signal restores the
-// default action and re-raises it, so a run that does not stop soon enough can still be killed.
+// step, write a checkpoint and leave with shine::Interrupted. A second signal, a second or more
+// after the first, restores the default action and re-raises it, so a run that does not stop soon
+// enough can still be killed; a repeat within the second is taken as the same request (`timeout`
+// signals the process and then its process group).
 #pragma once
 
 namespace shine {
