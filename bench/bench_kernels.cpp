@@ -1,8 +1,10 @@
 // Micro-benchmarks of the kernels a training step and a bake spend their time in: corner lookup
 // and trilinear encoding, the decoder (per sample and batched), the batched loss gradient, the
-// sparse Adam step, ray sampling, one full Trainer step (1 and 2 threads) and the bake.
+// sparse Adam step, ray sampling, one full Trainer step (1 and 2 threads) and the bake; and the
+// endpoint normals of incremental mode (the k-d tree and the whole estimate, 1 and 2 threads).
 // Scene: a 40 m x 40 m ground patch with a wall, scanned by one simulated 32-beam sweep, mapped
-// at 0.2 m with the default three levels. See docs/performance.md for how the numbers are used.
+// at 0.2 m with the default three levels; for the normals, ten such sweeps from sensors 1 m
+// apart. See docs/performance.md for how the numbers are used.
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 
@@ -19,12 +21,32 @@
 #include "shine/model/neural_sdf.hpp"
 #include "shine/model/sample_gradient.hpp"
 #include "shine/optim/adam.hpp"
+#include "shine/sampling/point_kdtree.hpp"
 #include "shine/sampling/ray_sampler.hpp"
 #include "shine/sampling/ray_set.hpp"
 #include "shine/sampling/surface_normals.hpp"
 
 namespace {
 using namespace shine;
+
+/// Endpoints of one 32-beam sweep (900 azimuths, 40 m range) of a sensor at `origin` over the
+/// ground plane z = 0 and a wall at x = 12 m.
+std::vector<Eigen::Vector3f> sweep(const Eigen::Vector3f& origin) {
+    std::vector<Eigen::Vector3f> endpoints;
+    for (int beam = 0; beam < 32; ++beam) {
+        const float elevation = (-25.0f + 27.0f * beam / 31.0f) * float(M_PI) / 180.0f;
+        for (int a = 0; a < 900; ++a) {
+            const float azimuth = 2.0f * float(M_PI) * a / 900.0f;
+            const Eigen::Vector3f d(std::cos(elevation) * std::cos(azimuth),
+                                    std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+            float t = 40.0f;
+            if (d.z() < 0.0f) t = std::min(t, origin.z() / -d.z());
+            if (d.x() > 0.0f) t = std::min(t, (12.0f - origin.x()) / d.x());
+            if (t < 40.0f) endpoints.push_back(origin + t * d);
+        }
+    }
+    return endpoints;
+}
 
 /// One sweep of a sensor 1.7 m above a ground plane with a wall at x = 12 m, mapped at 0.2 m.
 struct Scene {
@@ -34,20 +56,7 @@ struct Scene {
 
     Scene() {
         const Eigen::Vector3f origin(0.0f, 0.0f, 1.7f);
-        std::vector<Eigen::Vector3f> endpoints;
-        for (int beam = 0; beam < 32; ++beam) {
-            const float elevation = (-25.0f + 27.0f * beam / 31.0f) * float(M_PI) / 180.0f;
-            for (int a = 0; a < 900; ++a) {
-                const float azimuth = 2.0f * float(M_PI) * a / 900.0f;
-                const Eigen::Vector3f d(std::cos(elevation) * std::cos(azimuth),
-                                        std::cos(elevation) * std::sin(azimuth),
-                                        std::sin(elevation));
-                float t = 40.0f;
-                if (d.z() < 0.0f) t = std::min(t, 1.7f / -d.z());
-                if (d.x() > 0.0f) t = std::min(t, 12.0f / d.x());
-                if (t < 40.0f) endpoints.push_back(origin + t * d);
-            }
-        }
+        const std::vector<Eigen::Vector3f> endpoints = sweep(origin);
         rays.add_scan(origin, endpoints);
         sdf.octree.allocate_cells(endpoints);
         rays.set_normals(estimate_ray_normals(rays, NormalConfig{}));
@@ -227,6 +236,85 @@ void BM_TrainerStep(benchmark::State& state) {
 BENCHMARK(BM_TrainerStep)
     ->ArgsProduct({{1, 2}, {0, 1}})
     ->ArgNames({"threads", "train_decoder"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+/// Incremental mode's normal window: ten sweeps from sensors 1 m apart along x (about 250 k
+/// endpoints); the normals are asked for the last sweep.
+struct NormalWindow {
+    RaySet rays;
+    std::size_t query_begin = 0;
+
+    NormalWindow() {
+        for (int s = 9; s >= 0; --s) {
+            const Eigen::Vector3f origin(-1.0f * s, 0.1f * s, 1.7f);
+            query_begin = rays.num_rays();
+            rays.add_scan(origin, sweep(origin));
+        }
+    }
+};
+
+NormalWindow& normal_window() {
+    static NormalWindow instance;
+    return instance;
+}
+
+/// The k-d tree over every endpoint of the window (the build incremental mode pays each frame).
+void BM_PointKdTreeBuild(benchmark::State& state) {
+    const NormalWindow& w = normal_window();
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                              static_cast<std::size_t>(state.range(0)));
+    std::vector<IndexedPoint> points;
+    for (std::size_t r = 0; r < w.rays.num_rays(); ++r) {
+        points.push_back({w.rays.endpoint(r), static_cast<std::uint32_t>(r)});
+    }
+    for (auto _ : state) {
+        const PointKdTree tree(points);
+        benchmark::DoNotOptimize(tree.size());
+    }
+    state.SetItemsProcessed(state.iterations() * points.size());
+}
+BENCHMARK(BM_PointKdTreeBuild)
+    ->Arg(1)
+    ->Arg(2)
+    ->ArgName("threads")
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+/// The 16 nearest endpoints within 1 m of each endpoint of the last sweep (one thread).
+void BM_PointKdTreeNearest(benchmark::State& state) {
+    const NormalWindow& w = normal_window();
+    std::vector<IndexedPoint> points;
+    for (std::size_t r = 0; r < w.rays.num_rays(); ++r) {
+        points.push_back({w.rays.endpoint(r), static_cast<std::uint32_t>(r)});
+    }
+    const PointKdTree tree(points);
+    PointNeighbor neighbors[PointKdTree::kMaxNeighbors];
+    for (auto _ : state) {
+        for (std::size_t r = w.query_begin; r < w.rays.num_rays(); ++r) {
+            benchmark::DoNotOptimize(tree.nearest(w.rays.endpoint(r), 16, 1.0f, neighbors));
+        }
+    }
+    state.SetItemsProcessed(state.iterations() * (w.rays.num_rays() - w.query_begin));
+}
+BENCHMARK(BM_PointKdTreeNearest)->Unit(benchmark::kMillisecond);
+
+/// estimate_ray_normals for the last sweep among the window's endpoints: tree, queries and PCA.
+void BM_EstimateRayNormalsWindow(benchmark::State& state) {
+    const NormalWindow& w = normal_window();
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                              static_cast<std::size_t>(state.range(0)));
+    for (auto _ : state) {
+        const std::vector<Eigen::Vector3f> normals =
+            estimate_ray_normals(w.rays, NormalConfig{}, w.query_begin, w.rays.num_rays());
+        benchmark::DoNotOptimize(normals.data());
+    }
+    state.SetItemsProcessed(state.iterations() * (w.rays.num_rays() - w.query_begin));
+}
+BENCHMARK(BM_EstimateRayNormalsWindow)
+    ->Arg(1)
+    ->Arg(2)
+    ->ArgName("threads")
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 

@@ -5,33 +5,15 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <cmath>
 #include <cstdint>
-#include <limits>
-#include <nanoflann.hpp>
+#include <vector>
+
+#include "shine/sampling/point_kdtree.hpp"
 
 namespace shine {
 namespace {
 
-/// nanoflann's view of the ray endpoints.
-struct EndpointCloud {
-    const RaySet& rays;
-
-    std::size_t kdtree_get_point_count() const { return rays.num_rays(); }
-    float kdtree_get_pt(std::uint32_t ray, std::size_t axis) const {
-        return rays.endpoint(ray)[static_cast<Eigen::Index>(axis)];
-    }
-    template <class BoundingBox>
-    bool kdtree_get_bbox(BoundingBox& /*unused*/) const {
-        return false;
-    }
-};
-
-using EndpointTree =
-    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, EndpointCloud>,
-                                        EndpointCloud, 3, std::uint32_t>;
-
-constexpr int kMaxNeighbors = 64;
+constexpr int kMaxNeighbors = PointKdTree::kMaxNeighbors;
 
 }  // namespace
 
@@ -45,41 +27,37 @@ std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const Norm
     std::vector<Eigen::Vector3f> normals(n, Eigen::Vector3f::Zero());
     ray_end = std::min(ray_end, n);
     if (n < 3 || ray_begin >= ray_end) return normals;
-    const EndpointCloud cloud{rays};
-    EndpointTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
-    tree.buildIndex();
+    // The tree over all endpoints, in ray order (which decides, as in the nanoflann tree this one
+    // reproduces, the order of neighbours at equal distance).
+    std::vector<IndexedPoint> endpoints(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 65536), [&](const auto& range) {
+        for (std::size_t ray = range.begin(); ray != range.end(); ++ray) {
+            endpoints[ray] = {rays.endpoint(ray), static_cast<std::uint32_t>(ray)};
+        }
+    });
+    const PointKdTree tree(std::move(endpoints));
     const int k = std::clamp(config.neighbors, 3, kMaxNeighbors);
     const float max_radius_sq = config.max_radius_m * config.max_radius_m;
-    const float search_bound_sq =
-        std::nextafter(max_radius_sq, std::numeric_limits<float>::infinity());
 
+    // Queries in the tree's slot order, so that consecutive queries share leaves; each query
+    // writes only its own normal, so the order does not change the result.
     tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(ray_begin, ray_end, 4096), [&](const auto& range) {
-            std::uint32_t index[kMaxNeighbors];
-            float distance_sq[kMaxNeighbors];
-            for (std::size_t ray = range.begin(); ray != range.end(); ++ray) {
+        tbb::blocked_range<std::size_t>(0, tree.size(), 4096), [&](const auto& range) {
+            PointNeighbor neighbors[kMaxNeighbors];
+            for (std::size_t slot = range.begin(); slot != range.end(); ++slot) {
+                const std::size_t ray = tree.index_at(slot);
+                if (ray < ray_begin || ray >= ray_end) continue;
                 const Eigen::Vector3f& p = rays.endpoint(ray);
-                nanoflann::KNNResultSet<float, std::uint32_t> result(static_cast<std::size_t>(k));
-                result.init(index, distance_sq);
-                // Only neighbours within max_radius_m are used: starting the search with that
-                // bound as the k-th distance prunes the tree walk (sparse, far regions) and
-                // finds the same neighbours as an unbounded search filtered afterwards.
-                distance_sq[k - 1] = search_bound_sq;
-                tree.findNeighbors(result, p.data(), nanoflann::SearchParams());
-                const std::size_t found = result.size();
-                Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-                int used = 0;
-                for (std::size_t i = 0; i < found; ++i) {
-                    if (distance_sq[i] > max_radius_sq) continue;
-                    mean += rays.endpoint(index[i]).cast<double>();
-                    ++used;
-                }
+                // Only neighbours within max_radius_m are used; the search bound prunes the tree
+                // walk (sparse, far regions).
+                const int used = tree.nearest(p, k, max_radius_sq, neighbors);
                 if (used < 5) continue;
+                Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+                for (int i = 0; i < used; ++i) mean += neighbors[i].position.cast<double>();
                 mean /= used;
                 Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-                for (std::size_t i = 0; i < found; ++i) {
-                    if (distance_sq[i] > max_radius_sq) continue;
-                    const Eigen::Vector3d d = rays.endpoint(index[i]).cast<double>() - mean;
+                for (int i = 0; i < used; ++i) {
+                    const Eigen::Vector3d d = neighbors[i].position.cast<double>() - mean;
                     covariance += d * d.transpose();
                 }
                 Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
