@@ -31,7 +31,6 @@ enum Stream : std::uint64_t { kTrajectory = 0x100, kNoise = 0x200 };
 
 using sequence_internal::format_frame;
 using sequence_internal::json_number;
-using sequence_internal::json_number_exact;
 
 /// Casts the rays of one scan against `caster` (a RayCaster or a BlockSelection), in parallel; the
 /// range noise of ray i is drawn from a generator seeded by (noise_seed, i).
@@ -187,30 +186,9 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
     const auto& t = config.trajectory;
     const auto& s = scene_config;
     std::ostringstream json;
-    json << "{\n"
-         << "  \"generator\": \"shine simulate\",\n"
-         << "  \"seed\": " << config.seed << ",\n"
-         << "  \"num_frames\": " << config.num_frames << ",\n"
-         << "  \"origin_offset_world_m\": [" << json_number_exact(config.origin_offset_world_m.x())
-         << ", " << json_number_exact(config.origin_offset_world_m.y()) << ", "
-         << json_number_exact(config.origin_offset_world_m.z()) << "],\n"
-         << "  \"frames\": {\"points\": \"velodyne/NNNNNN.bin, float32 x y z intensity(0), "
-            "sensor frame\", \"poses\": \"poses.txt, T_world_sensor, KITTI 3x4 row-major\", "
-            "\"reference\": \"gt_mesh.ply, world frame, face property observed\"},\n"
-         << "  \"lidar\": {\"num_beams\": " << l.num_beams
-         << ", \"elevation_max_deg\": " << json_number(l.elevation_max_deg)
-         << ", \"elevation_min_deg\": " << json_number(l.elevation_min_deg)
-         << ", \"azimuth_steps\": " << l.azimuth_steps
-         << ", \"min_range_m\": " << json_number(l.min_range_m)
-         << ", \"max_range_m\": " << json_number(l.max_range_m)
-         << ", \"range_noise_sigma_m\": " << json_number(l.range_noise_sigma_m) << "},\n"
-         << "  \"trajectory\": {\"frame_spacing_m\": " << json_number(t.frame_spacing_m)
-         << ", \"sensor_height_m\": " << json_number(t.sensor_height_m)
-         << ", \"weave_amplitude_m\": " << json_number(t.weave_amplitude_m)
-         << ", \"weave_wavelength_m\": " << json_number(t.weave_wavelength_m)
-         << ", \"pitch_amplitude_deg\": " << json_number(t.pitch_amplitude_deg)
-         << ", \"roll_amplitude_deg\": " << json_number(t.roll_amplitude_deg) << "},\n"
-         << "  \"scene\": {\"start_x_m\": " << json_number(s.start_x_m)
+    sequence_internal::write_simulation_json_head(
+        json, "shine simulate", config.seed, config.num_frames, config.origin_offset_world_m, l, t);
+    json << "  \"scene\": {\"start_x_m\": " << json_number(s.start_x_m)
          << ", \"length_m\": " << json_number(s.length_m)
          << ", \"road_width_m\": " << json_number(s.road_width_m)
          << ", \"sidewalk_width_m\": " << json_number(s.sidewalk_width_m)

@@ -23,7 +23,6 @@ namespace route_internal {
 using random_internal::derive_seed;
 using sequence_internal::format_frame;
 using sequence_internal::json_number;
-using sequence_internal::json_number_exact;
 
 /// Independent random streams (the city and the drive use streams of their own).
 enum Stream : std::uint64_t { kNoise = 0x200 };
@@ -103,30 +102,9 @@ RouteSimulationSummary simulate_route_sequence(const RouteSimulationConfig& conf
     for (const Junction& j : route.junctions) extent.extend(j.area_m);
     const Eigen::Vector2d size_m = extent.sizes();
     std::ostringstream json;
-    json << "{\n"
-         << "  \"generator\": \"shine simulate --route-km\",\n"
-         << "  \"seed\": " << config.seed << ",\n"
-         << "  \"num_frames\": " << num_frames << ",\n"
-         << "  \"origin_offset_world_m\": [" << json_number_exact(config.origin_offset_world_m.x())
-         << ", " << json_number_exact(config.origin_offset_world_m.y()) << ", "
-         << json_number_exact(config.origin_offset_world_m.z()) << "],\n"
-         << "  \"frames\": {\"points\": \"velodyne/NNNNNN.bin, float32 x y z intensity(0), "
-            "sensor frame\", \"poses\": \"poses.txt, T_world_sensor, KITTI 3x4 row-major\", "
-            "\"reference\": \"gt_mesh.ply, world frame, face property observed\"},\n"
-         << "  \"lidar\": {\"num_beams\": " << l.num_beams
-         << ", \"elevation_max_deg\": " << json_number(l.elevation_max_deg)
-         << ", \"elevation_min_deg\": " << json_number(l.elevation_min_deg)
-         << ", \"azimuth_steps\": " << l.azimuth_steps
-         << ", \"min_range_m\": " << json_number(l.min_range_m)
-         << ", \"max_range_m\": " << json_number(l.max_range_m)
-         << ", \"range_noise_sigma_m\": " << json_number(l.range_noise_sigma_m) << "},\n"
-         << "  \"trajectory\": {\"frame_spacing_m\": " << json_number(t.frame_spacing_m)
-         << ", \"sensor_height_m\": " << json_number(t.sensor_height_m)
-         << ", \"weave_amplitude_m\": " << json_number(t.weave_amplitude_m)
-         << ", \"weave_wavelength_m\": " << json_number(t.weave_wavelength_m)
-         << ", \"pitch_amplitude_deg\": " << json_number(t.pitch_amplitude_deg)
-         << ", \"roll_amplitude_deg\": " << json_number(t.roll_amplitude_deg) << "},\n"
-         << "  \"route\": {\"length_m\": " << json_number(route.route_length_m)
+    sequence_internal::write_simulation_json_head(json, "shine simulate --route-km", config.seed,
+                                                  num_frames, config.origin_offset_world_m, l, t);
+    json << "  \"route\": {\"length_m\": " << json_number(route.route_length_m)
          << ", \"loop_length_m\": " << json_number(route.loop.length_m())
          << ", \"revisit_length_m\": " << json_number(route.revisit_length_m)
          << ", \"first_street_end_m\": " << json_number(route.first_street_end_m)

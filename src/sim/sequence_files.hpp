@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <ostream>
 #include <regex>
 #include <string>
 #include <system_error>
@@ -16,6 +17,7 @@
 #include "shine/core/progress.hpp"
 #include "shine/geometry/triangle_mesh.hpp"
 #include "shine/io/kitti.hpp"
+#include "shine/sim/drive_trajectory.hpp"
 #include "shine/sim/lidar_simulator.hpp"
 
 namespace shine::sim::sequence_internal {
@@ -56,6 +58,37 @@ inline void remove_stale_scans(const std::filesystem::path& velodyne_dir, int nu
             }
         }
     }
+}
+
+/// The opening of simulation.json that the street and the route share, up to and including the
+/// trajectory object ("  \"trajectory\": {...},\n"); the caller adds its scene and closes it.
+inline void write_simulation_json_head(std::ostream& json, const char* generator,
+                                       std::uint64_t seed, int num_frames,
+                                       const Eigen::Vector3d& origin_offset_world_m,
+                                       const LidarConfig& l, const DriveTrajectoryConfig& t) {
+    json << "{\n"
+         << "  \"generator\": \"" << generator << "\",\n"
+         << "  \"seed\": " << seed << ",\n"
+         << "  \"num_frames\": " << num_frames << ",\n"
+         << "  \"origin_offset_world_m\": [" << json_number_exact(origin_offset_world_m.x()) << ", "
+         << json_number_exact(origin_offset_world_m.y()) << ", "
+         << json_number_exact(origin_offset_world_m.z()) << "],\n"
+         << "  \"frames\": {\"points\": \"velodyne/NNNNNN.bin, float32 x y z intensity(0), "
+            "sensor frame\", \"poses\": \"poses.txt, T_world_sensor, KITTI 3x4 row-major\", "
+            "\"reference\": \"gt_mesh.ply, world frame, face property observed\"},\n"
+         << "  \"lidar\": {\"num_beams\": " << l.num_beams
+         << ", \"elevation_max_deg\": " << json_number(l.elevation_max_deg)
+         << ", \"elevation_min_deg\": " << json_number(l.elevation_min_deg)
+         << ", \"azimuth_steps\": " << l.azimuth_steps
+         << ", \"min_range_m\": " << json_number(l.min_range_m)
+         << ", \"max_range_m\": " << json_number(l.max_range_m)
+         << ", \"range_noise_sigma_m\": " << json_number(l.range_noise_sigma_m) << "},\n"
+         << "  \"trajectory\": {\"frame_spacing_m\": " << json_number(t.frame_spacing_m)
+         << ", \"sensor_height_m\": " << json_number(t.sensor_height_m)
+         << ", \"weave_amplitude_m\": " << json_number(t.weave_amplitude_m)
+         << ", \"weave_wavelength_m\": " << json_number(t.weave_wavelength_m)
+         << ", \"pitch_amplitude_deg\": " << json_number(t.pitch_amplitude_deg)
+         << ", \"roll_amplitude_deg\": " << json_number(t.roll_amplitude_deg) << "},\n";
 }
 
 /// Simulates the scan at every pose with `caster` (RayCaster or BlockRayCaster), seeding each
