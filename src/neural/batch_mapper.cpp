@@ -134,7 +134,6 @@ void BatchMapper::load_state(BinaryReader& in) {
     stats_ = stats;
     stats_.load_seconds += reloaded.load_seconds;
     stats_.allocate_seconds += reloaded.allocate_seconds;
-    stats_.normals_seconds = stats.normals_seconds;
     normals_done_ = false;  // the normals are not stored: train() estimates them again
     iterations_done_ = iterations_done;
     bce_average_ = bce_average;

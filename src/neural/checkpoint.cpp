@@ -60,6 +60,12 @@ std::string read_checkpoint_description(const std::filesystem::path& path) {
     return description;
 }
 
+void throw_stopped_with_checkpoint(const RunControl& control, const std::string& where) {
+    throw Interrupted(
+        "stopped " + where + "; checkpoint written to " + control.checkpoint_path.string() +
+        (control.resume_hint.empty() ? "" : "; continue with `" + control.resume_hint + "`"));
+}
+
 void save_sdf_parameters(BinaryWriter& out, const NeuralSdf& sdf) {
     out.tag("sdf");
     const FeatureOctree& octree = sdf.octree;

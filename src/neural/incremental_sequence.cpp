@@ -140,12 +140,9 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
             if (checkpoints && control->stop_requested && control->stop_requested()) {
                 progress.finish("stopped");
                 write_incremental_checkpoint(*control, result, i + 1);
-                throw Interrupted("stopped after frame " + std::to_string(i + 1) + " of " +
-                                  std::to_string(sequence.size()) + "; checkpoint written to " +
-                                  control->checkpoint_path.string() +
-                                  (control->resume_hint.empty()
-                                       ? ""
-                                       : "; continue with `" + control->resume_hint + "`"));
+                throw_stopped_with_checkpoint(*control, "after frame " + std::to_string(i + 1) +
+                                                            " of " +
+                                                            std::to_string(sequence.size()));
             }
             if (checkpoints && clock.due() && !last) {
                 write_incremental_checkpoint(*control, result, i + 1);

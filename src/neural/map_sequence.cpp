@@ -81,11 +81,6 @@ void write_batch_checkpoint(const RunControl& control, const BatchMapper& mapper
                      });
 }
 
-[[noreturn]] void stop_with_checkpoint(const RunControl& control, const std::string& where) {
-    throw Interrupted(
-        "stopped " + where + "; checkpoint written to " + control.checkpoint_path.string() +
-        (control.resume_hint.empty() ? "" : "; continue with `" + control.resume_hint + "`"));
-}
 }  // namespace
 
 SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequence,
@@ -126,9 +121,9 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
             if (checkpoints && !resume && i + 1 < sequence.size() && stop()) {
                 progress.finish("stopped");
                 write_batch_checkpoint(*control, mapper, BatchPhase::kLoading);
-                stop_with_checkpoint(*control, "while loading, after scan " +
-                                                   std::to_string(i + 1) + " of " +
-                                                   std::to_string(sequence.size()));
+                throw_stopped_with_checkpoint(*control, "while loading, after scan " +
+                                                            std::to_string(i + 1) + " of " +
+                                                            std::to_string(sequence.size()));
             }
         }
         progress.finish(std::to_string(mapper.stats().rays) + " rays, " +
@@ -162,9 +157,9 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
         }
         if (stopped || stop()) {
             write_batch_checkpoint(*control, mapper, BatchPhase::kTraining);
-            stop_with_checkpoint(*control, "after optimisation step " +
-                                               std::to_string(mapper.iterations_done()) + " of " +
-                                               std::to_string(iterations));
+            throw_stopped_with_checkpoint(*control, "after optimisation step " +
+                                                        std::to_string(mapper.iterations_done()) +
+                                                        " of " + std::to_string(iterations));
         }
     } else {
         train_with_progress(mapper, iterations, tagged("train", progress_tag));

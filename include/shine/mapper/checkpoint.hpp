@@ -59,6 +59,11 @@ BinaryReader read_checkpoint_header(const std::filesystem::path& path, std::stri
 /// The run description alone (for `shine map --resume` to rebuild its options).
 std::string read_checkpoint_description(const std::filesystem::path& path);
 
+/// Throws shine::Interrupted "stopped <where>; checkpoint written to <path>; continue with
+/// `<resume_hint>`" once a run has written its checkpoint.
+[[noreturn]] void throw_stopped_with_checkpoint(const RunControl& control,
+                                                const std::string& where);
+
 /// The SDF's parameters: feature rows (in the map's precision), decoder weights and the map
 /// origin, with the octree's row counts per level so that loading into a rebuilt octree that
 /// differs fails with a message instead of mixing up rows.
