@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <memory>
 #include <mutex>
 #include <type_traits>
 
@@ -22,6 +23,10 @@ constexpr char kFormatName[] = "shine-neural-map-1";
 /// (float32) or "shine_half_array" (float16, little-endian IEEE half as OpenVDB writes halves).
 /// Tools that do not know the type keep it as opaque bytes, so the file stays readable by
 /// vdb_print.
+///
+/// The values are either owned (read from a file, or moved in) and shared by copies, or a view of
+/// an array the caller keeps alive (writing): OpenVDB copies metadata on insertion, and a copy of
+/// a city's feature table would double its memory just to save it.
 template <typename T>
 class ArrayMetadata : public openvdb::Metadata {
   public:
@@ -31,27 +36,39 @@ class ArrayMetadata : public openvdb::Metadata {
     }
 
     ArrayMetadata() = default;
-    explicit ArrayMetadata(std::vector<T> values) : values_(std::move(values)) {}
+    explicit ArrayMetadata(std::vector<T> values)
+        : owned_(std::make_shared<const std::vector<T>>(std::move(values))),
+          data_(owned_->data()),
+          count_(owned_->size()) {}
+    /// Refers to `count` values at `data` without copying them; they must outlive this metadata
+    /// and every copy of it.
+    ArrayMetadata(const T* data, std::size_t count) : data_(data), count_(count) {}
 
-    const std::vector<T>& values() const { return values_; }
+    const T* begin() const { return data_; }
+    const T* end() const { return data_ + count_; }
+    std::size_t count() const { return count_; }
 
     static openvdb::Name staticTypeName() { return type_name(); }
     openvdb::Name typeName() const override { return type_name(); }
     openvdb::Metadata::Ptr copy() const override {
-        return openvdb::Metadata::Ptr(new ArrayMetadata(values_));
+        auto result = std::make_shared<ArrayMetadata>(data_, count_);
+        result->owned_ = owned_;
+        return result;
     }
     void copy(const openvdb::Metadata& other) override {
         const auto* o = dynamic_cast<const ArrayMetadata*>(&other);
         if (!o) OPENVDB_THROW(openvdb::TypeError, "incompatible metadata type");
-        values_ = o->values_;
+        owned_ = o->owned_;
+        data_ = o->data_;
+        count_ = o->count_;
     }
     std::string str() const override {
         return std::string(std::is_same_v<T, float> ? "float" : "half") + "[" +
-               std::to_string(values_.size()) + "]";
+               std::to_string(count_) + "]";
     }
-    bool asBool() const override { return !values_.empty(); }
+    bool asBool() const override { return count_ > 0; }
     openvdb::Index32 size() const override {
-        return static_cast<openvdb::Index32>(values_.size() * sizeof(T));
+        return static_cast<openvdb::Index32>(count_ * sizeof(T));
     }
     static openvdb::Metadata::Ptr create() { return openvdb::Metadata::Ptr(new ArrayMetadata); }
 
@@ -61,16 +78,21 @@ class ArrayMetadata : public openvdb::Metadata {
             OPENVDB_THROW(openvdb::IoError, type_name()
                                                 << " metadata of " << num_bytes << " bytes");
         }
-        values_.resize(num_bytes / sizeof(T));
-        is.read(reinterpret_cast<char*>(values_.data()), num_bytes);
+        auto values = std::make_shared<std::vector<T>>(num_bytes / sizeof(T));
+        is.read(reinterpret_cast<char*>(values->data()), num_bytes);
         if (!is) OPENVDB_THROW(openvdb::IoError, "truncated " << type_name() << " metadata");
+        owned_ = std::move(values);
+        data_ = owned_->data();
+        count_ = owned_->size();
     }
     void writeValue(std::ostream& os) const override {
-        os.write(reinterpret_cast<const char*>(values_.data()), size());
+        os.write(reinterpret_cast<const char*>(data_), size());
     }
 
   private:
-    std::vector<T> values_;
+    std::shared_ptr<const std::vector<T>> owned_;  ///< null for a view
+    const T* data_ = nullptr;
+    std::size_t count_ = 0;
 };
 
 using FloatArrayMetadata = ArrayMetadata<float>;
@@ -145,13 +167,9 @@ void save_neural_map(const std::filesystem::path& path, const NeuralSdf& sdf,
     meta.insertMeta("shine_feature_precision",
                     openvdb::StringMetadata(to_string(features.precision())));
     if (features.precision() == FeaturePrecision::kFloat16) {
-        meta.insertMeta("shine_features",
-                        HalfArrayMetadata(std::vector<Imath::half>(
-                            features.halves(), features.halves() + features.size())));
+        meta.insertMeta("shine_features", HalfArrayMetadata(features.halves(), features.size()));
     } else {
-        meta.insertMeta("shine_features",
-                        FloatArrayMetadata(std::vector<float>(
-                            features.floats(), features.floats() + features.size())));
+        meta.insertMeta("shine_features", FloatArrayMetadata(features.floats(), features.size()));
     }
     const auto& levels = octree.impl().levels;
     for (int level = 0; level < cfg.num_levels; ++level) {
@@ -253,10 +271,10 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
     NeuralSdf& sdf = loaded.sdf;
 
     auto weights = meta->getMetadata<FloatArrayMetadata>("shine_decoder_weights");
-    if (!weights || weights->values().size() != sdf.decoder.num_params()) {
+    if (!weights || weights->count() != sdf.decoder.num_params()) {
         throw IoError("'" + path.string() + "': decoder weights missing or of the wrong size");
     }
-    sdf.decoder.params() = weights->values();
+    sdf.decoder.params().assign(weights->begin(), weights->end());
     const auto num_corners = required<openvdb::Int64Metadata>(*meta, "shine_num_corners", path);
     FeatureTable file_table(cfg.feature_dim, cfg.feature_precision);
     {
@@ -265,25 +283,24 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
             num_corners < 0 ? 0 : static_cast<std::size_t>(num_corners) * cfg.feature_dim;
         if (cfg.feature_precision == FeaturePrecision::kFloat16) {
             auto features = meta->getMetadata<HalfArrayMetadata>("shine_features");
-            sized = features && num_corners >= 0 && features->values().size() == expected;
+            sized = features && num_corners >= 0 && features->count() == expected;
             if (sized) {
                 file_table.resize(static_cast<std::size_t>(num_corners));
-                std::copy(features->values().begin(), features->values().end(),
-                          file_table.halves());
+                std::copy(features->begin(), features->end(), file_table.halves());
             }
         } else {
             auto features = meta->getMetadata<FloatArrayMetadata>("shine_features");
-            sized = features && num_corners >= 0 && features->values().size() == expected;
+            sized = features && num_corners >= 0 && features->count() == expected;
             if (sized) {
                 file_table.resize(static_cast<std::size_t>(num_corners));
-                std::copy(features->values().begin(), features->values().end(),
-                          file_table.floats());
+                std::copy(features->begin(), features->end(), file_table.floats());
             }
         }
         if (!sized) {
             throw IoError("'" + path.string() + "': " + to_string(cfg.feature_precision) +
                           " feature table missing or of the wrong size");
         }
+        meta->removeMeta("shine_features");  // the table holds them now
     }
     const auto origin = required<openvdb::Vec3DMetadata>(*meta, "shine_origin_world_m", path);
     sdf.origin_world_m = Eigen::Vector3d(origin.x(), origin.y(), origin.z());
