@@ -116,30 +116,39 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
     // neighbour differ in sign. Outside the evaluated region the flood fill's sign is a guess, and
     // a wrong guess next to the band (e.g. below an observed ground strip) would add a false
     // surface. So every unevaluated neighbour of the band takes the sign its band neighbours
-    // agree on (their sum): only where the surface itself leaves the observed region does a
-    // crossing remain, a skirt of at most one voxel.
+    // agree on (the sum of their values): only where the surface itself leaves the observed
+    // region does a crossing remain, a skirt of at most one voxel. The sum is gathered at the
+    // unevaluated voxel from its active neighbours, whose values this pass never changes, so no
+    // list of a city's band boundary is held; the leaves are listed first because setting a value
+    // may add leaves.
     {
-        std::vector<std::pair<openvdb::Coord, float>> shell;
+        using LeafT = openvdb::FloatTree::LeafNodeType;
+        std::vector<const LeafT*> band_leaves;
+        for (auto leaf = grid->tree().cbeginLeaf(); leaf; ++leaf) {
+            if (!leaf->isEmpty()) band_leaves.push_back(leaf.getLeaf());
+        }
         auto done = evaluated_mask.getConstAccessor();
-        for (auto it = grid->cbeginValueOn(); it; ++it) {
-            const openvdb::Coord c = it.getCoord();
-            for (int axis = 0; axis < 3; ++axis) {
-                for (int step : {-1, 1}) {
-                    openvdb::Coord n = c;
-                    n[axis] += step;
-                    if (!done.isValueOn(n)) shell.emplace_back(n, *it);
+        auto band = grid->getConstAccessor();
+        for (const LeafT* leaf : band_leaves) {
+            for (auto voxel = leaf->cbeginValueOn(); voxel; ++voxel) {
+                for (int axis = 0; axis < 3; ++axis) {
+                    for (int step : {-1, 1}) {
+                        openvdb::Coord n = voxel.getCoord();
+                        n[axis] += step;
+                        if (done.isValueOn(n)) continue;
+                        float sum = 0.0f;
+                        for (int a = 0; a < 3; ++a) {
+                            for (int s : {-1, 1}) {
+                                openvdb::Coord m = n;
+                                m[a] += s;
+                                float value;
+                                if (band.probeValue(m, value)) sum += value;
+                            }
+                        }
+                        accessor.setValueOff(n, sum < 0.0f ? -background_m : background_m);
+                    }
                 }
             }
-        }
-        std::sort(shell.begin(), shell.end(),
-                  [](const auto& a, const auto& b) { return a.first < b.first; });
-        for (std::size_t i = 0; i < shell.size();) {
-            float sum = 0.0f;
-            std::size_t j = i;
-            for (; j < shell.size() && shell[j].first == shell[i].first; ++j)
-                sum += shell[j].second;
-            accessor.setValueOff(shell[i].first, sum < 0.0f ? -background_m : background_m);
-            i = j;
         }
     }
     grid->tree().prune();
