@@ -76,10 +76,9 @@ int run_mesh(const BakeOptions& opt) {
     auto grid = level_set_from(opt);
     MeshConfig mesh_config;
     mesh_config.adaptivity = opt.adaptivity;
-    const TriangleMesh mesh = mesh_level_set(*grid, mesh_config);
-    write_ply_mesh(opt.out, mesh);
-    std::printf("wrote %s: %zu vertices, %zu triangles\n", opt.out.c_str(), mesh.vertices.size(),
-                mesh.triangles.size());
+    const MeshFileStats mesh = write_level_set_mesh(*grid, mesh_config, opt.out);
+    std::printf("wrote %s: %zu vertices, %zu triangles\n", opt.out.c_str(), mesh.vertices,
+                mesh.triangles);
     return 0;
 }
 

@@ -263,7 +263,6 @@ int run_map(const MapOptions& given_options) {
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();
-    const TriangleMesh& mesh = products.mesh;
     const double save_seconds = products.save_seconds;
     const double bake_seconds = products.bake_seconds;
     const double mesh_seconds = products.mesh_seconds;
@@ -314,11 +313,12 @@ int run_map(const MapOptions& given_options) {
                     json["incremental"]["threads_used"].get<int>());
     }
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
-                (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), mesh.triangles.size());
+                (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), products.mesh.triangles);
     if (opt.profile) std::printf("%s", profile.format_table().c_str());
     if (!ref.empty()) {
         const auto t0 = std::chrono::steady_clock::now();
-        const MeshMetrics metrics = evaluate_meshes(mesh, read_ply_mesh(ref));
+        const MeshMetrics metrics =
+            evaluate_meshes(read_ply_mesh(out / "mesh.ply"), read_ply_mesh(ref));
         json["eval"] = nlohmann::json::parse(metrics_to_json(metrics));
         json["eval"]["reference"] = ref.string();
         json["seconds"]["eval"] = seconds_since(t0);

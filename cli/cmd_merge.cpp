@@ -107,11 +107,11 @@ int run_merge(const MergeOptions& opt) {
         tiles.size(), sdf.octree.num_corners(), merged.stats.fallback_corners,
         sdf.memory_bytes() / 1e6);
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
-                (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(),
-                products.mesh.triangles.size());
+                (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), products.mesh.triangles);
     if (!opt.ref_path.empty()) {
         const auto t0 = std::chrono::steady_clock::now();
-        const MeshMetrics metrics = evaluate_meshes(products.mesh, read_ply_mesh(opt.ref_path));
+        const MeshMetrics metrics =
+            evaluate_meshes(read_ply_mesh(out / "mesh.ply"), read_ply_mesh(opt.ref_path));
         json["eval"] = nlohmann::json::parse(metrics_to_json(metrics));
         json["eval"]["reference"] = opt.ref_path;
         json["seconds"]["eval"] = seconds_since(t0);

@@ -17,8 +17,9 @@ void add_product_stats(nlohmann::json& json, const NeuralSdf& sdf, const MapProd
                        {"active_voxels", products.bake.active_voxels},
                        {"mem_bytes", products.surface_mem_bytes},
                        {"file_bytes", file_bytes(out / "surface.vdb")}};
-    json["mesh"] = {{"vertices", products.mesh.vertices.size()},
-                    {"triangles", products.mesh.triangles.size()}};
+    json["mesh"] = {{"vertices", products.mesh.vertices},
+                    {"triangles", products.mesh.triangles},
+                    {"regions", products.mesh.regions}};
 }
 
 }  // namespace shine::cli

@@ -192,10 +192,10 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         shine_row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
         if (reference) {
             progress.update(1, "eval");
-            shine_row.metrics =
-                to_bench_metrics(evaluate_meshes(products.mesh, *reference, config.eval));
+            shine_row.metrics = to_bench_metrics(
+                evaluate_meshes(read_ply_mesh(dir / "mesh.ply"), *reference, config.eval));
         }
-        progress.finish(std::to_string(products.mesh.triangles.size()) + " triangles");
+        progress.finish(std::to_string(products.mesh.triangles) + " triangles");
     }
     return {shine_row, tsdf_row};
 }

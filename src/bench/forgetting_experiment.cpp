@@ -15,6 +15,7 @@
 #include "shine/eval/mesh_sampling.hpp"
 #include "shine/eval/metrics_report.hpp"
 #include "shine/eval/nearest_distance.hpp"
+#include "shine/io/ply.hpp"
 #include "shine/io/preprocess.hpp"
 #include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
@@ -225,7 +226,7 @@ ForgettingReport run_forgetting_experiment(const ForgettingConfig& config_in,
         run.seconds = seconds_since(start);
         run.median_frame_seconds = mapped.mapper->median_frame_seconds();
         run.map_bytes = mapped.mapper->sdf().memory_bytes();
-        run.mesh = std::move(mapped.products.mesh);
+        run.mesh = read_ply_mesh(out_dir / run.name / "mesh.ply");
         evaluate(run);
         report.runs.push_back(std::move(run));
     }
@@ -236,7 +237,7 @@ ForgettingReport run_forgetting_experiment(const ForgettingConfig& config_in,
         SequenceMap mapped = map_sequence(config.mapper, sequence, out_dir / "batch", "batch");
         run.seconds = seconds_since(start);
         run.map_bytes = mapped.mapper->sdf().memory_bytes();
-        run.mesh = std::move(mapped.products.mesh);
+        run.mesh = read_ply_mesh(out_dir / "batch" / "mesh.ply");
         evaluate(run);
         report.runs.push_back(std::move(run));
     }

@@ -3,7 +3,8 @@
 // The reader loads the whole file into memory once, parses the header, checks every element count
 // against the bytes that actually follow the header (so a corrupt header cannot make us allocate
 // gigabytes), then walks the body with a bounds-checked cursor (binary) or tokenizer (ascii).
-// The writer fills one contiguous buffer and hands it to the stream in a single call.
+// The writer fills one contiguous buffer and hands it to the stream in a single call; the stream
+// writer (meshes too large to hold) spools vertices and faces to two files and joins them.
 #include "shine/io/ply.hpp"
 
 #include <cctype>
@@ -683,6 +684,100 @@ void write_ply_points(const fs::path& path, const std::vector<Eigen::Vector3f>& 
     put_vertices(buffer.data() + header.size(), points);
     write_stream_atomically(path, [&](std::ostream& stream) {
         stream.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    });
+}
+
+namespace {
+/// A name beside `path` for a part of it being written; removed when done.
+fs::path part_path(const fs::path& path, const char* part) {
+    fs::path p = path;
+    p += std::string(".") + part + ".tmp";
+    return p;
+}
+}  // namespace
+
+PlyMeshStreamWriter::PlyMeshStreamWriter(fs::path path, const Eigen::Vector3d& origin_world_m)
+    : path_(std::move(path)),
+      origin_world_m_(origin_world_m),
+      vertex_path_(part_path(path_, "vertices")),
+      face_path_(part_path(path_, "faces")) {
+    vertices_.open(vertex_path_, std::ios::binary | std::ios::trunc);
+    faces_.open(face_path_, std::ios::binary | std::ios::trunc);
+    if (!vertices_ || !faces_) {
+        std::error_code ignored;
+        fs::remove(vertex_path_, ignored);
+        fs::remove(face_path_, ignored);
+        throw IoError("cannot write '" + path_.string() + "': cannot create its temporary files '" +
+                      vertex_path_.string() + "' and '" + face_path_.string() + "'");
+    }
+}
+
+PlyMeshStreamWriter::~PlyMeshStreamWriter() {
+    vertices_.close();
+    faces_.close();
+    std::error_code ignored;
+    fs::remove(vertex_path_, ignored);
+    fs::remove(face_path_, ignored);
+}
+
+void PlyMeshStreamWriter::check(const std::ostream& stream, const char* what) const {
+    if (!stream) {
+        throw IoError("cannot write '" + path_.string() + "': writing its " + what +
+                      " failed (disk full?)");
+    }
+}
+
+std::int32_t PlyMeshStreamWriter::add_vertex(const Eigen::Vector3f& vertex) {
+    using ply_internal::put_le;
+    if (num_vertices_ >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+        throw DataError("cannot write '" + path_.string() +
+                        "': more vertices than a PLY int index can address");
+    }
+    char bytes[3 * sizeof(float)];
+    char* out = bytes;
+    for (int a = 0; a < 3; ++a) out = put_le(out, vertex[a]);
+    vertices_.write(bytes, sizeof(bytes));
+    check(vertices_, "vertices");
+    return static_cast<std::int32_t>(num_vertices_++);
+}
+
+void PlyMeshStreamWriter::add_triangle(std::int32_t a, std::int32_t b, std::int32_t c) {
+    using ply_internal::put_le;
+    for (const std::int32_t index : {a, b, c}) {
+        if (index < 0 || static_cast<std::size_t>(index) >= num_vertices_) {
+            throw DataError("cannot write '" + path_.string() + "': triangle " +
+                            std::to_string(num_triangles_) + " refers to vertex " +
+                            std::to_string(index) + " but only " + std::to_string(num_vertices_) +
+                            " vertices were added");
+        }
+    }
+    char bytes[1 + 3 * sizeof(std::int32_t)];
+    bytes[0] = 3;
+    char* out = bytes + 1;
+    for (const std::int32_t index : {a, b, c}) out = put_le(out, index);
+    faces_.write(bytes, sizeof(bytes));
+    check(faces_, "faces");
+    ++num_triangles_;
+}
+
+void PlyMeshStreamWriter::commit() {
+    vertices_.close();
+    faces_.close();
+    check(vertices_, "vertices");
+    check(faces_, "faces");
+    const std::string header = ply_internal::header_text(num_vertices_, num_triangles_,
+                                                         /*with_faces=*/true,
+                                                         /*with_observed=*/false, origin_world_m_);
+    write_stream_atomically(path_, [&](std::ostream& out) {
+        out.write(header.data(), static_cast<std::streamsize>(header.size()));
+        for (const fs::path& part : {vertex_path_, face_path_}) {
+            std::ifstream in(part, std::ios::binary);
+            if (!in) {
+                throw IoError("cannot write '" + path_.string() + "': its temporary file '" +
+                              part.string() + "' disappeared");
+            }
+            if (fs::file_size(part) > 0) out << in.rdbuf();
+        }
     });
 }
 

@@ -88,6 +88,7 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
 IncrementalMapper::~IncrementalMapper() = default;
 
 void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame) {
+    require_training_state("add_scan/replay_scan");
     // 1. Preprocess into the map frame (as BatchMapper::add_scan).
     auto start = std::chrono::steady_clock::now();
     ScanInMap current = scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess);
@@ -215,10 +216,27 @@ double IncrementalMapper::median_frame_seconds() const {
 }
 
 std::size_t IncrementalMapper::state_bytes() const {
+    if (!trainer_) return released_state_bytes_;
     return importance_.memory_bytes() + trainer_->optimizer_bytes();
 }
 
+void IncrementalMapper::release_training_state() {
+    if (!trainer_) return;
+    released_state_bytes_ = state_bytes();
+    trainer_.reset();
+    importance_ = ImportanceWeights();
+    window_ = {};
+}
+
+void IncrementalMapper::require_training_state(const char* what) const {
+    if (!trainer_) {
+        throw Error(std::string("IncrementalMapper::") + what +
+                    " after release_training_state(): the map is final");
+    }
+}
+
 void IncrementalMapper::save_state(BinaryWriter& out) const {
+    require_training_state("save_state");
     out.tag("incremental mapper");
     static_assert(std::is_trivially_copyable_v<IncrementalFrameStats>);
     static_assert(std::is_trivially_copyable_v<MappingStats>);
@@ -231,6 +249,7 @@ void IncrementalMapper::save_state(BinaryWriter& out) const {
 }
 
 void IncrementalMapper::load_state(BinaryReader& in) {
+    require_training_state("load_state");
     in.expect_tag("incremental mapper");
     std::vector<IncrementalFrameStats> frames = in.array<IncrementalFrameStats>("frame statistics");
     if (frames.size() != frames_.size()) {

@@ -153,6 +153,8 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
         std::snprintf(detail, sizeof(detail), "median %.2f s/frame", mapper.median_frame_seconds());
         progress.finish(detail);
     }
+    // The map is final: its training state's memory goes to the products.
+    mapper.release_training_state();
     result.products = write_map_products(mapper.sdf(), config, out_dir);
     result.profile.threads = static_cast<int>(
         tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
@@ -163,10 +165,12 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
         ProgressMesh snapshot;
         snapshot.frame = sequence.size() - 1;
         snapshot.path = out_dir / "progress" / frame_name(snapshot.frame);
-        write_ply_mesh(snapshot.path, result.products.mesh);
+        write_file_atomically(snapshot.path, [&](const fs::path& tmp) {
+            fs::copy_file(out_dir / "mesh.ply", tmp, fs::copy_options::overwrite_existing);
+        });
         snapshot.write_seconds = seconds_since(t0);
         snapshot.bake_seconds = result.products.bake_seconds + result.products.mesh_seconds;
-        snapshot.triangles = result.products.mesh.triangles.size();
+        snapshot.triangles = result.products.mesh.triangles;
         result.progress_meshes.push_back(snapshot);
     }
     return result;

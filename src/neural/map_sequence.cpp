@@ -61,8 +61,7 @@ MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
     products.surface_mem_bytes = surface->memUsage();
 
     t0 = std::chrono::steady_clock::now();
-    products.mesh = mesh_level_set(*surface, config.mesh);
-    write_ply_mesh(out_dir / "mesh.ply", products.mesh);
+    products.mesh = write_level_set_mesh(*surface, config.mesh, out_dir / "mesh.ply");
     products.mesh_seconds = seconds_since(t0);
     return products;
 }

@@ -13,7 +13,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <string_view>
 #include <vector>
 
@@ -38,6 +40,42 @@ TriangleMesh parse_ply_mesh(std::string_view data, const std::filesystem::path& 
 /// shine_origin_world_m comment when mesh.origin_world_m is not zero. Throws DataError if
 /// face_observed has the wrong size or a triangle refers to a missing vertex.
 void write_ply_mesh(const std::filesystem::path& path, const TriangleMesh& mesh);
+
+/// Writes a mesh too large to hold in memory piece by piece, as the same binary PLY as
+/// write_ply_mesh (without `observed`): vertices and triangles go to two temporary files beside
+/// `path` as they come, and commit() writes the header and both parts into `path` atomically.
+/// Without commit() (an exception on the way, say) nothing appears under `path`; the temporary
+/// files are removed either way. Throws IoError naming `path` when a write fails.
+class PlyMeshStreamWriter {
+  public:
+    PlyMeshStreamWriter(std::filesystem::path path, const Eigen::Vector3d& origin_world_m);
+    ~PlyMeshStreamWriter();
+    PlyMeshStreamWriter(const PlyMeshStreamWriter&) = delete;
+    PlyMeshStreamWriter& operator=(const PlyMeshStreamWriter&) = delete;
+
+    /// Appends a vertex (in the frame of origin_world_m) and returns its index.
+    std::int32_t add_vertex(const Eigen::Vector3f& vertex);
+    /// Appends a triangle of vertices already added; throws DataError for an index out of range.
+    void add_triangle(std::int32_t a, std::int32_t b, std::int32_t c);
+
+    std::size_t num_vertices() const { return num_vertices_; }
+    std::size_t num_triangles() const { return num_triangles_; }
+
+    /// Writes `path`: header, vertices, triangles. Call once, after the last triangle.
+    void commit();
+
+  private:
+    void check(const std::ostream& stream, const char* what) const;
+
+    std::filesystem::path path_;
+    Eigen::Vector3d origin_world_m_;
+    std::filesystem::path vertex_path_;
+    std::filesystem::path face_path_;
+    std::ofstream vertices_;
+    std::ofstream faces_;
+    std::size_t num_vertices_ = 0;
+    std::size_t num_triangles_ = 0;
+};
 
 /// Reads the vertex positions of a PLY point cloud (faces, if any, are ignored; NaN coordinates
 /// are returned as stored, preprocess_scan filters them). Throws IoError as read_ply_mesh.

@@ -92,12 +92,21 @@ class IncrementalMapper {
     const ImportanceWeights& importance() const { return importance_; }
     /// Median of the frames' total_seconds (0 before the first frame).
     double median_frame_seconds() const;
-    /// Bytes of the state beyond the map: importance weights, anchors, Adam moments.
+    /// Bytes of the state beyond the map: importance weights, anchors, Adam moments; after
+    /// release_training_state(), what they were just before.
     std::size_t state_bytes() const;
+
+    /// The map is final: frees the optimiser state, the importance weights and the scans of the
+    /// normal window, so that the products (bake, mesh) of a long drive have that memory.
+    /// sdf(), stats(), frames() and state_bytes() stay; add_scan(), replay_scan(), save_state()
+    /// and load_state() throw Error afterwards.
+    void release_training_state();
 
   private:
     /// Steps 1-2 of add_scan(): fills frame.rays, new_corners, preprocess and allocate seconds.
     void preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame);
+    /// Throws Error naming `what` once release_training_state() has run.
+    void require_training_state(const char* what) const;
 
     MapperConfig config_;
     std::unique_ptr<NeuralSdf> sdf_;
@@ -108,6 +117,7 @@ class IncrementalMapper {
     MappingStats stats_;
     std::uint64_t iteration_ = 0;
     bool origin_set_ = false;
+    std::size_t released_state_bytes_ = 0;  ///< state_bytes() when the state was released
 };
 
 }  // namespace shine

@@ -17,12 +17,12 @@
 #include <string>
 
 #include "shine/bake/level_set_bake.hpp"
-#include "shine/geometry/triangle_mesh.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/mapper_config.hpp"
 #include "shine/mapper/stage_profile.hpp"
+#include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/neural_sdf.hpp"
 
 namespace shine {
@@ -31,7 +31,7 @@ namespace shine {
 struct MapProducts {
     BakeStats bake;
     std::size_t surface_mem_bytes = 0;  ///< memUsage() of the baked level set
-    TriangleMesh mesh;                  ///< the zero level set, world frame
+    MeshFileStats mesh;                 ///< mesh.ply (read it back to evaluate it)
     double save_seconds = 0.0;          ///< writing map.vdb
     double bake_seconds = 0.0;          ///< baking and writing surface.vdb
     double mesh_seconds = 0.0;          ///< meshing and writing mesh.ply
@@ -57,7 +57,9 @@ bool train_with_progress(BatchMapper& mapper, int iterations, const std::string&
 
 /// Writes the products of a trained map into `out_dir` (which must exist): `map.vdb` (the neural
 /// map with `config` as YAML), `surface.vdb` (baked with config.bake) and `mesh.ply` (meshed with
-/// config.mesh). Every file is written atomically. Throws IoError naming the file on failure.
+/// config.mesh, region by region: write_level_set_mesh). Every file is written atomically. Peak
+/// memory beyond the map is the level set's; the mesh is never held whole. Throws IoError naming
+/// the file on failure.
 MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
                                const std::filesystem::path& out_dir);
 

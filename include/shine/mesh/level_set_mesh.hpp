@@ -4,6 +4,9 @@
 
 #include <openvdb/openvdb.h>
 
+#include <cstddef>
+#include <filesystem>
+
 #include "shine/geometry/triangle_mesh.hpp"
 
 namespace shine {
@@ -20,6 +23,26 @@ inline constexpr char kOriginMetadataKey[] = "shine_origin_world_m";
 /// Extracts the surface of `level_set` in the grid's frame (index-to-world transform, vertices as
 /// float); the mesh's origin_world_m is the grid's kOriginMetadataKey metadata (zero without it).
 TriangleMesh mesh_level_set(const openvdb::FloatGrid& level_set, const MeshConfig& config);
+
+/// What write_level_set_mesh() wrote.
+struct MeshFileStats {
+    std::size_t vertices = 0;
+    std::size_t triangles = 0;
+    std::size_t regions = 0;  ///< regions meshed one after another (1: the whole grid at once)
+};
+
+/// Cube edge (voxels) of the regions write_level_set_mesh() meshes one at a time.
+inline constexpr int kMeshRegionVoxels = 256;
+
+/// Meshes `level_set` as mesh_level_set() does and writes the mesh to `path` (binary PLY,
+/// atomically), region by region: cubes of `region_voxels` voxels (a multiple of 8) are cut out
+/// with a margin, meshed, and each polygon is kept by the one region that holds its centre;
+/// vertices on region seams are welded. The triangles are mesh_level_set()'s, in another order,
+/// and memory stays that of one region, whatever the grid's size. Adaptivity and the removal of
+/// small components need the whole mesh: with either set, it meshes the grid at once.
+MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const MeshConfig& config,
+                                   const std::filesystem::path& path,
+                                   int region_voxels = kMeshRegionVoxels);
 
 /// Removes connected components (by shared vertices) with fewer than `min_triangles` triangles
 /// and drops unreferenced vertices. Returns the number of triangles removed.
