@@ -138,17 +138,19 @@ MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const Me
         stats.regions = 1;
         return stats;
     }
-    // The regions that hold leaves (tiles are constant: no surface inside them, and a surface
-    // between two tiles or a tile and a leaf has a leaf on one side... or is in no region, as in
-    // volumeToMesh, which meshes leaves).
-    auto region_of = [&](const openvdb::Coord& c) {
-        return openvdb::Coord(static_cast<int>(std::floor(double(c.x()) / region_voxels)),
-                              static_cast<int>(std::floor(double(c.y()) / region_voxels)),
-                              static_cast<int>(std::floor(double(c.z()) / region_voxels)));
+    // Regions are columns, region_voxels square and as tall as the leaves reach (plus a leaf):
+    // a seam across a column would run along the ground of a drive, where half the vertices are.
+    // Only columns that hold leaves are meshed (volumeToMesh meshes leaves).
+    openvdb::CoordBBox leaf_box;
+    level_set.tree().evalLeafBoundingBox(leaf_box);
+    const int z_min = leaf_box.min().z() - kLeaf, z_max = leaf_box.max().z() + kLeaf;
+    auto column_of = [&](const openvdb::Coord& c) {
+        return std::make_pair(static_cast<int>(std::floor(double(c.x()) / region_voxels)),
+                              static_cast<int>(std::floor(double(c.y()) / region_voxels)));
     };
-    std::vector<openvdb::Coord> regions;
+    std::vector<std::pair<int, int>> regions;
     for (auto leaf = level_set.tree().cbeginLeaf(); leaf; ++leaf) {
-        regions.push_back(region_of(leaf->origin()));
+        regions.push_back(column_of(leaf->origin()));
     }
     std::sort(regions.begin(), regions.end());
     regions.erase(std::unique(regions.begin(), regions.end()), regions.end());
@@ -160,10 +162,10 @@ MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const Me
     std::vector<openvdb::Vec3I> triangles;
     std::vector<openvdb::Vec4I> quads;
     std::vector<std::int32_t> global;
-    for (const openvdb::Coord& r : regions) {
-        const openvdb::Coord core_min(r.x() * region_voxels, r.y() * region_voxels,
-                                      r.z() * region_voxels);
-        const openvdb::Coord core_max = core_min.offsetBy(region_voxels - 1);
+    for (const auto& [column_x, column_y] : regions) {
+        const openvdb::Coord core_min(column_x * region_voxels, column_y * region_voxels, z_min);
+        const openvdb::Coord core_max(core_min.x() + region_voxels - 1,
+                                      core_min.y() + region_voxels - 1, z_max);
         // A polygon kept here (centre in the core) lies within a voxel of its edge, and its
         // vertices depend on voxels at most two further out: one leaf of margin holds them all.
         const openvdb::CoordBBox cut(core_min.offsetBy(-kLeaf), core_max.offsetBy(kLeaf));
@@ -187,7 +189,7 @@ MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const Me
             const openvdb::Vec3s& p = points[local];
             const openvdb::Vec3d index = transform.worldToIndex(openvdb::Vec3d(p));
             bool on_seam = false;
-            for (int a = 0; a < 3; ++a) {
+            for (int a = 0; a < 2; ++a) {
                 on_seam = on_seam || index[a] <= core_min[a] + 1.0 || index[a] >= core_max[a];
             }
             if (on_seam) g = seam.find(p);

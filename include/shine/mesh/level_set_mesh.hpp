@@ -31,15 +31,16 @@ struct MeshFileStats {
     std::size_t regions = 0;  ///< regions meshed one after another (1: the whole grid at once)
 };
 
-/// Cube edge (voxels) of the regions write_level_set_mesh() meshes one at a time.
+/// Edge (voxels) of the square columns write_level_set_mesh() meshes one at a time.
 inline constexpr int kMeshRegionVoxels = 256;
 
 /// Meshes `level_set` as mesh_level_set() does and writes the mesh to `path` (binary PLY,
-/// atomically), region by region: cubes of `region_voxels` voxels (a multiple of 8) are cut out
-/// with a margin, meshed, and each polygon is kept by the one region that holds its centre;
-/// vertices on region seams are welded. The triangles are mesh_level_set()'s, in another order,
-/// and memory stays that of one region, whatever the grid's size. Adaptivity and the removal of
-/// small components need the whole mesh: with either set, it meshes the grid at once.
+/// atomically), region by region: columns `region_voxels` voxels square (a multiple of 8), as tall
+/// as the grid, are cut out with a margin and meshed, and each polygon is kept by the one column
+/// that holds its centre; vertices on column seams are welded. The triangles are
+/// mesh_level_set()'s, in another order (a quad's diagonal may differ), and memory stays that of
+/// one column, whatever the grid's extent. Adaptivity and the removal of small components need
+/// the whole mesh: with either set, it meshes the grid at once.
 MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const MeshConfig& config,
                                    const std::filesystem::path& path,
                                    int region_voxels = kMeshRegionVoxels);
