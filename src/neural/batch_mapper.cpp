@@ -51,6 +51,7 @@ bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
     if (rays_.num_rays() == 0) {
         throw DataError("no points left to map after preprocessing (check the range limits)");
     }
+    sdf_->octree.compact_structure();  // the map is complete: no dead slots from allocation
     auto start = std::chrono::steady_clock::now();
     if (config_.normals.enabled && !normals_done_) {
         rays_.set_normals(estimate_ray_normals(rays_, config_.normals));

@@ -141,8 +141,23 @@ openvdb::Coord choose_index_shift(const openvdb::CoordBBox& first_cells) {
                           kMiddle - lo.z());
 }
 
-void repack_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& new_row) {
-    // Sized exactly: structure_bytes() counts the capacity.
+namespace {
+
+/// Active voxels before each mask word of `leaf` (LeafSlots::word_prefix).
+std::uint64_t word_prefix_of(const IndexLeaf& leaf) {
+    std::uint64_t prefix = 0;
+    openvdb::Index64 before = 0;
+    const auto& mask = leaf.getValueMask();
+    for (openvdb::Index w = 1; w < IndexLeaf::NodeMaskType::WORD_COUNT; ++w) {
+        before += openvdb::util::CountOn(mask.getWord<openvdb::Index64>(w - 1));
+        prefix |= before << (9 * (w - 1));
+    }
+    return prefix;
+}
+
+/// Packs every leaf in tree order into new, exactly sized arrays: the corners active in `fresh`
+/// (may be null) get new_row(), the others keep their rows.
+void pack_all_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& new_row) {
     std::vector<std::int32_t> rows;
     rows.reserve(level.grid->tree().activeVoxelCount());
     std::vector<LeafSlots> leaves;
@@ -158,12 +173,7 @@ void repack_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& 
         std::size_t old_slot = had_corners ? level.leaves[leaf->transientData()].first_slot : 0;
         LeafSlots slots;
         slots.first_slot = static_cast<std::uint32_t>(rows.size());
-        openvdb::Index64 before = 0;
-        const auto& mask = leaf->getValueMask();
-        for (openvdb::Index w = 1; w < IndexLeaf::NodeMaskType::WORD_COUNT; ++w) {
-            before += openvdb::util::CountOn(mask.getWord<openvdb::Index64>(w - 1));
-            slots.word_prefix |= before << (9 * (w - 1));
-        }
+        slots.word_prefix = word_prefix_of(*leaf);
         if (!fresh_leaf) {
             const auto begin = level.rows.begin() + static_cast<std::ptrdiff_t>(old_slot);
             rows.insert(rows.end(), begin, begin + count);
@@ -182,6 +192,60 @@ void repack_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& 
     }
     level.rows.swap(rows);
     level.leaves.swap(leaves);
+    level.dead_slots = 0;
+}
+
+}  // namespace
+
+void compact_rows(LevelIndex& level) {
+    if (level.dead_slots == 0 && level.rows.capacity() == level.rows.size() &&
+        level.leaves.capacity() == level.leaves.size()) {
+        return;
+    }
+    pack_all_rows(level, nullptr, {});
+}
+
+void repack_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& new_row) {
+    if (!fresh) return;
+    if (level.leaves.empty() || fresh == &level.grid->tree()) {
+        pack_all_rows(level, fresh, new_row);
+        return;
+    }
+    openvdb::tree::ValueAccessor<IndexTree> accessor(level.grid->tree());
+    for (auto fresh_leaf = fresh->cbeginLeaf(); fresh_leaf; ++fresh_leaf) {
+        IndexLeaf* leaf = accessor.probeLeaf(fresh_leaf->origin());
+        if (!leaf) throw Error("repack_rows: a new corner's leaf is missing from the level's grid");
+        const openvdb::Index count = leaf->onVoxelCount();
+        const openvdb::Index added = fresh_leaf->onVoxelCount();
+        const bool had_corners = added < count;
+        if (level.rows.size() + count > std::numeric_limits<std::uint32_t>::max()) {
+            throw Error("feature map level exceeds 2^32 corner slots; use a larger leaf size");
+        }
+        LeafSlots slots;
+        slots.first_slot = static_cast<std::uint32_t>(level.rows.size());
+        slots.word_prefix = word_prefix_of(*leaf);
+        if (had_corners) {
+            LeafSlots& previous = level.leaves[leaf->transientData()];
+            std::size_t old_slot = previous.first_slot;
+            for (auto voxel = leaf->cbeginValueOn(); voxel; ++voxel) {
+                if (fresh_leaf->isValueOn(voxel.pos())) {
+                    level.rows.push_back(new_row(voxel.getCoord() - level.shift));
+                } else {
+                    const std::int32_t row = level.rows[old_slot++];
+                    level.rows.push_back(row);
+                }
+            }
+            level.dead_slots += count - added;
+            previous = slots;
+        } else {
+            for (auto voxel = leaf->cbeginValueOn(); voxel; ++voxel) {
+                level.rows.push_back(new_row(voxel.getCoord() - level.shift));
+            }
+            leaf->setTransientData(static_cast<openvdb::Index32>(level.leaves.size()));
+            level.leaves.push_back(slots);
+        }
+    }
+    if (level.dead_slots > level.rows.size() - level.dead_slots) compact_rows(level);
 }
 
 void FeatureOctree::initial_feature(std::uint64_t seed, int level, const Eigen::Vector3i& corner,
@@ -293,6 +357,10 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
         });
     }
     return added;
+}
+
+void FeatureOctree::compact_structure() {
+    for (LevelIndex& level : impl_->levels) compact_rows(level);
 }
 
 bool FeatureOctree::find_cell(int level, const Eigen::Vector3f& point_map,

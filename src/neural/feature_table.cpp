@@ -25,20 +25,8 @@ void FeatureTable::resize(std::size_t num_rows) {
     // Sized exactly (not grown geometrically) so that bytes() is the table's real size.
     const std::size_t n = num_rows * static_cast<std::size_t>(dim_);
     if (precision_ == FeaturePrecision::kFloat32) {
-        if (n > f32_.capacity()) {
-            std::vector<float> grown;
-            grown.reserve(n);
-            grown.assign(f32_.begin(), f32_.end());
-            f32_.swap(grown);
-        }
         f32_.resize(n, 0.0f);
     } else {
-        if (n > f16_.capacity()) {
-            std::vector<Imath::half> grown;
-            grown.reserve(n);
-            grown.assign(f16_.begin(), f16_.end());
-            f16_.swap(grown);
-        }
         f16_.resize(n, Imath::half(0.0f));
     }
 }
@@ -46,13 +34,11 @@ void FeatureTable::resize(std::size_t num_rows) {
 void FeatureTable::set_precision(FeaturePrecision precision) {
     if (precision == precision_) return;
     if (precision == FeaturePrecision::kFloat16) {
-        std::vector<Imath::half> converted(f32_.begin(), f32_.end());
-        f16_.swap(converted);
-        std::vector<float>().swap(f32_);
+        f16_ = TrivialArray<Imath::half>(f32_.begin(), f32_.end());
+        f32_ = TrivialArray<float>();
     } else {
-        std::vector<float> converted(f16_.begin(), f16_.end());
-        f32_.swap(converted);
-        std::vector<Imath::half>().swap(f16_);
+        f32_ = TrivialArray<float>(f16_.begin(), f16_.end());
+        f16_ = TrivialArray<Imath::half>();
     }
     precision_ = precision;
 }
@@ -124,7 +110,8 @@ void FeatureTable::copy_rows(const FeatureTable& src, std::size_t src_row, std::
 }
 
 std::vector<float> FeatureTable::to_floats() const {
-    if (precision_ == FeaturePrecision::kFloat32) return f32_;
+    if (precision_ == FeaturePrecision::kFloat32)
+        return std::vector<float>(f32_.begin(), f32_.end());
     return std::vector<float>(f16_.begin(), f16_.end());
 }
 

@@ -1,5 +1,9 @@
 #include "shine/mapper/incremental_mapper.hpp"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -226,6 +230,10 @@ void IncrementalMapper::release_training_state() {
     trainer_.reset();
     importance_ = ImportanceWeights();
     window_ = {};
+    sdf_->octree.compact_structure();
+#if defined(__GLIBC__)
+    malloc_trim(0);  // hand the freed pages back, so that the products find them free
+#endif
 }
 
 void IncrementalMapper::require_training_state(const char* what) const {

@@ -118,7 +118,8 @@ void Trainer::load_state(BinaryReader& in) {
     row_state_.load(in);
     steps_taken_ = steps_taken;
     scan_ = scan;
-    local_index_.assign(sdf_.octree.num_corners(), -1);
+    local_index_ = TrivialArray<std::int32_t>();
+    local_index_.resize(sdf_.octree.num_corners(), -1);
 }
 
 TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::size_t ray_end,

@@ -72,6 +72,10 @@ class FeatureOctree {
     /// with concurrent queries.
     std::size_t allocate_cells(const std::vector<Eigen::Vector3f>& points_map);
 
+    /// Packs the per-corner rows of every level afresh (allocation leaves dead slots behind when
+    /// leaves gain corners): for a map that stops growing. Rows and queries are unchanged.
+    void compact_structure();
+
     /// Finds the cell of `level` containing `point_map`; false if any of its corners is missing.
     /// Convenience for single queries; hot loops use a CellLookup per thread.
     bool find_cell(int level, const Eigen::Vector3f& point_map, LevelCorners& out) const;

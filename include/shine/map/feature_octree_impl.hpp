@@ -47,10 +47,13 @@ struct LevelIndex {
     /// allocation (choose_index_shift) and stored in map files.
     openvdb::Coord shift{0, 0, 0};
     bool shift_chosen = false;
-    /// Feature row of every corner, leaf by leaf (tree order), in voxel order inside a leaf.
+    /// Feature row of every corner, leaf by leaf, in voxel order inside a leaf. Packed in tree
+    /// order by a full repack; a leaf that gains corners later is re-packed at the end, leaving
+    /// dead slots behind (repack_rows compacts when they outnumber the live ones).
     std::vector<std::int32_t> rows;
-    /// Per leaf, in tree order; a leaf's transient data is its index here.
+    /// Per leaf; a leaf's transient data is its index here.
     std::vector<LeafSlots> leaves;
+    std::size_t dead_slots = 0;  ///< slots of `rows` no leaf refers to
 
     /// Bytes of the grid's tree (memUsage(), as for any OpenVDB grid), the packed rows and the
     /// per-leaf slots.
@@ -100,9 +103,15 @@ inline std::int32_t index_row(AccessorT& accessor, const LevelIndex& level,
 /// Returns the feature row of a corner (corner coordinates) that has just been activated.
 using NewCornerRow = std::function<std::int32_t(const openvdb::Coord& corner)>;
 
-/// Re-packs `level.rows` and `level.leaves` after voxels were activated in its grid: corners that
-/// existed (not active in `fresh`, which may be null) keep their rows, new ones get
-/// `new_row(corner)`, called in tree order. Sets every leaf's transient data to its index.
+/// Updates `level.rows` and `level.leaves` after the voxels active in `fresh` (null: none) were
+/// activated in the level's grid: corners that existed keep their rows, new ones get
+/// `new_row(corner)`, called in tree order. Only the leaves that gained corners are re-packed (at
+/// the end of `rows`), so the cost follows the new corners, not the map; when the dead slots this
+/// leaves outnumber the live ones, or for a first allocation, all leaves are packed afresh in tree
+/// order (and every leaf's transient data set to its index).
 void repack_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& new_row);
+
+/// Packs every leaf afresh, in tree order, with `rows` sized exactly: no dead slots.
+void compact_rows(LevelIndex& level);
 
 }  // namespace shine

@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "shine/core/trivial_array.hpp"
+
 namespace shine {
 
 /// Storage precision of the feature table.
@@ -45,12 +47,11 @@ class FeatureTable {
     std::size_t size() const {
         return precision_ == FeaturePrecision::kFloat32 ? f32_.size() : f16_.size();
     }
-    /// Bytes of storage held (capacity, not just size).
-    std::size_t bytes() const {
-        return f32_.capacity() * sizeof(float) + f16_.capacity() * sizeof(Imath::half);
-    }
+    /// Bytes of storage held (the table is sized exactly).
+    std::size_t bytes() const { return f32_.bytes() + f16_.bytes(); }
 
-    /// Resizes to exactly `num_rows` rows; new rows are zero.
+    /// Resizes to exactly `num_rows` rows; new rows are zero. Growing does not copy the table
+    /// (TrivialArray), so a scan's new rows cost what they hold, not the map's size.
     void resize(std::size_t num_rows);
     /// Converts every feature to `precision` (float32 -> float16 rounds to nearest even).
     void set_precision(FeaturePrecision precision);
@@ -83,8 +84,8 @@ class FeatureTable {
   private:
     int dim_;
     FeaturePrecision precision_;
-    std::vector<float> f32_;
-    std::vector<Imath::half> f16_;
+    TrivialArray<float> f32_;
+    TrivialArray<Imath::half> f16_;
 };
 
 }  // namespace shine

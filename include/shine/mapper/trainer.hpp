@@ -22,6 +22,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "shine/core/trivial_array.hpp"
 #include "shine/model/neural_sdf.hpp"
 #include "shine/optim/adam.hpp"
 #include "shine/optim/feature_row_state.hpp"
@@ -114,8 +115,7 @@ class Trainer {
     void set_feature_learning_rate(float lr) { feature_adam_.set_learning_rate(lr); }
     void set_decoder_learning_rate(float lr) { decoder_adam_.set_learning_rate(lr); }
     std::size_t optimizer_bytes() const {
-        return row_state_.memory_bytes() + decoder_adam_.memory_bytes() +
-               local_index_.capacity() * sizeof(std::int32_t);
+        return row_state_.memory_bytes() + decoder_adam_.memory_bytes() + local_index_.bytes();
     }
     /// Pages of per-row optimiser state currently held.
     std::size_t resident_state_pages() const { return row_state_.resident_pages(); }
@@ -143,7 +143,7 @@ class Trainer {
     FeatureRowState row_state_;
     std::uint32_t scan_ = 0;  ///< begin_scan() calls (incremental mode; 0 in batch mode)
     /// Per feature row, its index in its partition's touched rows during a step, else -1.
-    std::vector<std::int32_t> local_index_;
+    TrivialArray<std::int32_t> local_index_;  ///< per map row; grows with the map, never copied
     std::vector<float> decoder_grads_;
     std::vector<Chunk> chunks_;
     std::vector<Partition> partitions_;
