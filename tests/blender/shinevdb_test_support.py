@@ -19,6 +19,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 from mathutils.bvhtree import BVHTree
+from mathutils.kdtree import KDTree
 
 ADDON_MODULE = "shinevdb"
 SURFACE_TOLERANCE_VOXELS = 0.1  # the issue's bound: vertex-to-surface distance < 1/10 voxel
@@ -135,6 +136,16 @@ def used_vertices(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     used = np.zeros(len(vertices), bool)
     used[triangles.ravel()] = True
     return vertices[used]
+
+
+def nearest_vertices(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """For each point, the nearest of ``vertices`` (the PLY's vertex order is shine's own: it
+    meshes in columns, so vertices are matched by position, not by index)."""
+    tree = KDTree(len(vertices))
+    for index, vertex in enumerate(vertices.tolist()):
+        tree.insert(vertex, index)
+    tree.balance()
+    return np.array([tree.find(point)[0] for point in points.tolist()])
 
 
 @dataclass
