@@ -2,8 +2,8 @@
 
 The mesh comes from Blender's Volume to Mesh modifier at iso 0 on the level-set grid (not the
 ``density`` grid the modifier reads by default). Blender 3.4's modifier returns OpenVDB's
-``volumeToMesh`` vertices moved by half a voxel along +x, +y and +z (measured: the same vertices, in
-the same order, as the ``mesh.ply`` of ``shine map`` / ``shine mesh`` plus that shift). The modifier
+``volumeToMesh`` vertices moved by half a voxel along +x, +y and +z (measured: the used vertices of
+the ``mesh.ply`` of ``shine map`` / ``shine mesh`` plus that shift). The modifier
 places its output where the Volume object is, so the importer moves the Volume object by minus half
 a voxel: the mesh then lies exactly where ``mesh.ply`` lies, in the same world frame (numbers in
 docs/blender.md; checked by tests/blender/test_import.py).
