@@ -135,20 +135,7 @@ RouteSimulationSummary simulate_route_sequence(const RouteSimulationConfig& conf
          << "  \"scene\": {\"curb_height_m\": " << json_number(route.street.curb_height_m)
          << ", \"max_edge_length_m\": " << json_number(route.street.max_edge_length_m)
          << ", \"objects\": {";
-    const SceneObjectKind kinds[] = {SceneObjectKind::kBuilding, SceneObjectKind::kTree,
-                                     SceneObjectKind::kCar, SceneObjectKind::kPole,
-                                     SceneObjectKind::kPedestrian};
-    for (std::size_t i = 0; i < std::size(kinds); ++i) {
-        json << (i ? ", " : "") << '"' << to_string(kinds[i])
-             << "s\": " << city.scene.count_objects(kinds[i]);
-    }
-    json << "}},\n"
-         << "  \"results\": {\"num_triangles\": " << summary.num_triangles
-         << ", \"num_observed_triangles\": " << summary.num_observed_triangles
-         << ", \"total_points\": " << summary.total_points
-         << ", \"min_points_per_scan\": " << summary.min_points_per_scan
-         << ", \"max_points_per_scan\": " << summary.max_points_per_scan << "}\n"
-         << "}\n";
+    sequence_internal::write_simulation_json_tail(json, city.scene, summary);
     write_stream_atomically(out_dir / "simulation.json",
                             [&](std::ostream& out) { out << json.str(); });
     write_stream_atomically(out_dir / "README.txt", [&](std::ostream& out) {

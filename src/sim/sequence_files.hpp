@@ -19,6 +19,7 @@
 #include "shine/io/kitti.hpp"
 #include "shine/sim/drive_trajectory.hpp"
 #include "shine/sim/lidar_simulator.hpp"
+#include "shine/sim/street_scene.hpp"
 
 namespace shine::sim::sequence_internal {
 
@@ -58,6 +59,26 @@ inline void remove_stale_scans(const std::filesystem::path& velodyne_dir, int nu
             }
         }
     }
+}
+
+/// The end of simulation.json that the street and the route share, after the caller's
+/// `"objects": {`: the scene's object counts, the results, the closing braces.
+inline void write_simulation_json_tail(std::ostream& json, const StreetScene& scene,
+                                       const SimulationSummary& summary) {
+    const SceneObjectKind kinds[] = {SceneObjectKind::kBuilding, SceneObjectKind::kTree,
+                                     SceneObjectKind::kCar, SceneObjectKind::kPole,
+                                     SceneObjectKind::kPedestrian};
+    for (std::size_t i = 0; i < std::size(kinds); ++i) {
+        json << (i ? ", " : "") << '"' << to_string(kinds[i])
+             << "s\": " << scene.count_objects(kinds[i]);
+    }
+    json << "}},\n"
+         << "  \"results\": {\"num_triangles\": " << summary.num_triangles
+         << ", \"num_observed_triangles\": " << summary.num_observed_triangles
+         << ", \"total_points\": " << summary.total_points
+         << ", \"min_points_per_scan\": " << summary.min_points_per_scan
+         << ", \"max_points_per_scan\": " << summary.max_points_per_scan << "}\n"
+         << "}\n";
 }
 
 /// The opening of simulation.json that the street and the route share, up to and including the
