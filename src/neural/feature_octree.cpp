@@ -5,6 +5,10 @@
 #include <limits>
 #include <random>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
 #include "shine/core/error.hpp"
 #include "shine/map/feature_octree_impl.hpp"
 
@@ -111,7 +115,7 @@ void sort_unique_cells(std::vector<Eigen::Vector3i>& cells) {
         keys[i] = (std::uint64_t(c.x() + kBias) << (2 * kBits)) |
                   (std::uint64_t(c.y() + kBias) << kBits) | std::uint64_t(c.z() + kBias);
     }
-    std::sort(keys.begin(), keys.end());
+    tbb::parallel_sort(keys.begin(), keys.end());  // equal keys are alike: one result
     keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
     constexpr std::uint64_t kMask = (std::uint64_t(1) << kBits) - 1;
     cells.resize(keys.size());
@@ -287,23 +291,40 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
     std::vector<std::unique_ptr<IndexTree>> fresh_trees(config_.num_levels);
     std::vector<const IndexTree*> fresh(config_.num_levels, nullptr);
     std::size_t added = 0;
+    // Points and cells are handled in blocks of this many, in parallel; every result is then
+    // combined in block order, so the map does not depend on the thread count.
+    constexpr std::size_t kBlock = 4096;
     for (int level = 0; level < config_.num_levels; ++level) {
         // Collect the distinct cells first so that each corner is visited once per cell.
         const double inv = 1.0 / cell_size_m(level);
         const double margin_m = config_.allocation_margin_ratio * config_.leaf_size_m;
-        std::vector<Eigen::Vector3i> cells;
-        cells.reserve(points_map.size() * 2);
-        for (const auto& p : points_map) {
-            int lo[3], hi[3];
-            for (int a = 0; a < 3; ++a) {
-                lo[a] = static_cast<int>(std::floor((p[a] - margin_m) * inv));
-                hi[a] = static_cast<int>(std::floor((p[a] + margin_m) * inv));
-            }
-            for (int x = lo[0]; x <= hi[0]; ++x) {
-                for (int y = lo[1]; y <= hi[1]; ++y) {
-                    for (int z = lo[2]; z <= hi[2]; ++z) cells.emplace_back(x, y, z);
+        const std::size_t point_blocks = (points_map.size() + kBlock - 1) / kBlock;
+        std::vector<std::vector<Eigen::Vector3i>> block_cells(point_blocks);
+        tbb::parallel_for(std::size_t(0), point_blocks, [&](std::size_t b) {
+            std::vector<Eigen::Vector3i>& out = block_cells[b];
+            out.reserve(kBlock * 2);
+            const std::size_t end = std::min(points_map.size(), (b + 1) * kBlock);
+            for (std::size_t i = b * kBlock; i < end; ++i) {
+                const Eigen::Vector3f& p = points_map[i];
+                int lo[3], hi[3];
+                for (int a = 0; a < 3; ++a) {
+                    lo[a] = static_cast<int>(std::floor((p[a] - margin_m) * inv));
+                    hi[a] = static_cast<int>(std::floor((p[a] + margin_m) * inv));
+                }
+                for (int x = lo[0]; x <= hi[0]; ++x) {
+                    for (int y = lo[1]; y <= hi[1]; ++y) {
+                        for (int z = lo[2]; z <= hi[2]; ++z) out.emplace_back(x, y, z);
+                    }
                 }
             }
+        });
+        std::vector<Eigen::Vector3i> cells;
+        std::size_t num_cells = 0;
+        for (const auto& block : block_cells) num_cells += block.size();
+        cells.reserve(num_cells);
+        for (auto& block : block_cells) {
+            cells.insert(cells.end(), block.begin(), block.end());
+            std::vector<Eigen::Vector3i>().swap(block);
         }
         if (cells.empty()) continue;
         sort_unique_cells(cells);
@@ -319,14 +340,27 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
             index.shift_chosen = true;
             index.grid->transform().postTranslate(-index.shift.asVec3d() * cell_size_m(level));
         }
+        // The corners not yet in the grid, found in parallel (the grid is only read), in cell
+        // order; a corner shared by several cells may be listed more than once.
+        const std::size_t cell_blocks = (cells.size() + kBlock - 1) / kBlock;
+        std::vector<std::vector<openvdb::Coord>> missing(cell_blocks);
+        tbb::parallel_for(std::size_t(0), cell_blocks, [&](std::size_t b) {
+            IndexAccessor reader(index.grid->tree());
+            const std::size_t end = std::min(cells.size(), (b + 1) * kBlock);
+            for (std::size_t i = b * kBlock; i < end; ++i) {
+                const openvdb::Coord origin = to_coord(cells[i]) + index.shift;
+                for (const auto& offset : kCornerOffset) {
+                    const openvdb::Coord ijk = origin.offsetBy(offset[0], offset[1], offset[2]);
+                    if (!reader.isValueOn(ijk)) missing[b].push_back(ijk);
+                }
+            }
+        });
         auto accessor = index.grid->getAccessor();
         fresh_trees[level] = std::make_unique<IndexTree>(false);
         openvdb::tree::ValueAccessor<IndexTree> fresh_accessor(*fresh_trees[level]);
         std::size_t added_here = 0;
-        for (const auto& cell : cells) {
-            const openvdb::Coord origin = to_coord(cell) + index.shift;
-            for (const auto& offset : kCornerOffset) {
-                const openvdb::Coord ijk = origin.offsetBy(offset[0], offset[1], offset[2]);
+        for (const auto& block : missing) {
+            for (const openvdb::Coord& ijk : block) {
                 if (accessor.isValueOn(ijk)) continue;
                 accessor.setValueOn(ijk);
                 fresh_accessor.setValueOn(ijk);
@@ -341,21 +375,35 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
     if (old_rows + added >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
         throw Error("feature map exceeds 2^31 corners; use a larger leaf size");
     }
-    // New corners get rows appended to the table, in tree order; existing rows do not move.
+    // New corners get rows appended to the table, in tree order; existing rows do not move. Their
+    // initial values (a hash of the corner, see initial_feature) are drawn afterwards, in
+    // parallel.
     features_.resize(old_rows + added);
-    const int dim = config_.feature_dim;
-    std::vector<float> initial(dim);
-    std::size_t next_row = old_rows;
+    struct NewCorner {
+        openvdb::Coord corner;
+        int level;
+    };
+    std::vector<NewCorner> new_corners;
+    new_corners.reserve(added);
     for (int level = 0; level < config_.num_levels; ++level) {
         if (!fresh[level]) continue;
         repack_rows(impl_->levels[level], fresh[level], [&](const openvdb::Coord& corner) {
-            initial_feature(config_.seed, level,
-                            Eigen::Vector3i(corner.x(), corner.y(), corner.z()), config_.init_std,
-                            initial.data(), dim);
-            features_.set_row(next_row, initial.data());
-            return static_cast<std::int32_t>(next_row++);
+            new_corners.push_back({corner, level});
+            return static_cast<std::int32_t>(old_rows + new_corners.size() - 1);
         });
     }
+    const int dim = config_.feature_dim;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, new_corners.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          std::vector<float> initial(dim);
+                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                              const openvdb::Coord& c = new_corners[i].corner;
+                              initial_feature(config_.seed, new_corners[i].level,
+                                              Eigen::Vector3i(c.x(), c.y(), c.z()),
+                                              config_.init_std, initial.data(), dim);
+                              features_.set_row(old_rows + i, initial.data());
+                          }
+                      });
     return added;
 }
 
