@@ -1,13 +1,13 @@
 #include "shine/map/feature_octree.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include "shine/core/error.hpp"
 #include "shine/map/feature_octree_impl.hpp"
