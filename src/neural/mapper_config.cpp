@@ -185,6 +185,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"importance_cap", number(c.incremental.importance.importance_cap, 1e-12, 1e30)},
           {"decoder_weights", text(c.incremental.decoder_weights)},
           {"mesh_every", number(c.incremental.mesh_every, 0, 1000000)},
+          {"learning_rate", number(c.incremental.learning_rate, 1e-7, 10.0)},
+          {"voxel_downsample_m", number(c.incremental.voxel_downsample_m, 0.0, 10.0)},
           {"surface_band_m", number(c.incremental.surface_band_m, 1e-3, 10.0)},
           {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)},
           {"importance_ray_stride", number(c.incremental.importance_ray_stride, 1, 1000)},
