@@ -233,6 +233,10 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
                 const FeatureRowState::Row ahead = row_state_.touch(rows[i + kAhead], scan_);
                 __builtin_prefetch(ahead.first_moment, 1);
                 __builtin_prefetch(ahead.step, 1);
+                if (regularize) {
+                    __builtin_prefetch(ahead.anchor, 1);  // the block's next cache line
+                    regularizer->prefetch_row(rows[i + kAhead]);
+                }
                 if (!half)
                     __builtin_prefetch(table_floats + std::size_t(rows[i + kAhead]) * dim, 1);
             }

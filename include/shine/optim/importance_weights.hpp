@@ -82,6 +82,11 @@ class ImportanceWeights {
     double add_row_gradient(std::int32_t row, const float* param, const float* anchor,
                             float* grad) const;
 
+    /// Requests the row's Omega ahead of add_row_gradient() (rows come in random order).
+    void prefetch_row(std::int32_t row) const {
+        __builtin_prefetch(importance_.data() + static_cast<std::size_t>(row));
+    }
+
     /// Eq. (4): Omega_i = min(Omega_i + gradient_norm_sums[i], Omega_m) for every row;
     /// `gradient_norm_sums` has one entry per row (rows beyond it are unchanged). Throws
     /// DataError if it has more entries than there are rows or a negative or non-finite entry.
