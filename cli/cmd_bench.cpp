@@ -143,7 +143,8 @@ const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
         ->capture_default_str();
     cmd->add_option("-c,--config", opt->config_path,
                     "YAML configuration of ShineVDB (see examples/config.yaml); its leaf size is "
-                    "replaced by each resolution, its preprocessing is used for both methods");
+                    "replaced by each resolution, its preprocessing is used for both methods "
+                    "(except the voxel thinning: the TSDF keeps its 0.05 m)");
     cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)");
     cmd->add_option("--iterations", opt->iterations, "ShineVDB optimisation steps per run");
     cmd->add_option("--seed", opt->seed, "Random seed of ShineVDB");

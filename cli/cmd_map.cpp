@@ -148,7 +148,6 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
     }
     json["incremental"] = {{"iterations_per_frame", inc.iterations_per_frame},
                            {"learning_rate", inc.learning_rate},
-                           {"voxel_downsample_m", inc.voxel_downsample_m},
                            {"regularization_weight", inc.importance.regularization_weight},
                            {"importance_cap", inc.importance.importance_cap},
                            {"decoder_weights", inc.decoder_weights},

@@ -59,7 +59,12 @@ TEST(BenchConfigs, ResolutionSetsLeafVoxelAndTruncation) {
     EXPECT_FALSE(t.tsdf.space_carving);
     EXPECT_EQ(t.mesh.min_weight, 2.0);
     EXPECT_EQ(t.preprocess.max_range_m, 40.0);  // both methods see the same points
-    EXPECT_EQ(t.preprocess.voxel_downsample_m, s.preprocess.voxel_downsample_m);
+    // ... each thinned with its own voxel: the TSDF fuses every 5 cm point, the mapper trains on
+    // a 0.2 m grid.
+    EXPECT_EQ(t.preprocess.voxel_downsample_m, 0.05);
+    EXPECT_EQ(s.preprocess.voxel_downsample_m, 0.2);
+    config.tsdf.preprocess.voxel_downsample_m = 0.02;
+    EXPECT_EQ(tsdf_config_at(config, 0.5).preprocess.voxel_downsample_m, 0.02);
 }
 
 TEST(BenchConfigs, RunDirectories) {

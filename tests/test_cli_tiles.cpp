@@ -49,7 +49,7 @@ constexpr int kLocalWorkers = 4;
 constexpr double kMaxFscoreLoss = 0.01;
 constexpr const char* kConfigYaml =
     "incremental:\n  iterations_per_frame: 100\n  learning_rate: 0.01\n"
-    "  voxel_downsample_m: 0.05\n";
+    "preprocess:\n  voxel_downsample_m: 0.05\n";
 // No scan is dropped on this street, so the union of the tiles' cells is the single run's map
 // (measured: equal corner counts).
 constexpr double kMaxCornerCountRatioGap = 0.001;

@@ -73,7 +73,11 @@ MapperConfig shine_config_at(const BenchConfig& config, double size_m) {
 
 TsdfMapperConfig tsdf_config_at(const BenchConfig& config, double size_m) {
     TsdfMapperConfig c = config.tsdf;
+    // The same scans, cropped alike; each method keeps its own voxel thinning (the TSDF fuses
+    // every 5 cm point, the neural map trains on a 0.2 m grid: mapper_config.hpp).
+    const double tsdf_voxel_downsample_m = c.preprocess.voxel_downsample_m;
     c.preprocess = config.shine.preprocess;
+    c.preprocess.voxel_downsample_m = tsdf_voxel_downsample_m;
     c.tsdf.voxel_size_m = size_m;
     c.tsdf.trunc_m = config.trunc_voxels * size_m;
     c.validate();

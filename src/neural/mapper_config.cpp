@@ -186,7 +186,6 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"decoder_weights", text(c.incremental.decoder_weights)},
           {"mesh_every", number(c.incremental.mesh_every, 0, 1000000)},
           {"learning_rate", number(c.incremental.learning_rate, 1e-7, 10.0)},
-          {"voxel_downsample_m", number(c.incremental.voxel_downsample_m, 0.0, 10.0)},
           {"surface_band_m", number(c.incremental.surface_band_m, 1e-3, 10.0)},
           {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)},
           {"importance_ray_stride", number(c.incremental.importance_ray_stride, 1, 1000)},
@@ -204,10 +203,16 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
 
 }  // namespace
 
+PreprocessConfig mapper_preprocess_defaults() {
+    PreprocessConfig config;
+    config.voxel_downsample_m = 0.2;
+    return config;
+}
+
 int MapperConfig::batch_iterations() const {
     if (iterations >= 0) return iterations;
-    const double scaled = 6000.0 * std::pow(0.2 / octree.leaf_size_m, 1.5);
-    return static_cast<int>(std::lround(std::clamp(scaled, 6000.0, 50000.0)));
+    const double scaled = 3000.0 * std::pow(0.2 / octree.leaf_size_m, 1.5);
+    return static_cast<int>(std::lround(std::clamp(scaled, 3000.0, 50000.0)));
 }
 
 void MapperConfig::finalize() {

@@ -33,6 +33,7 @@ struct BenchConfig {
     MapperConfig shine;     ///< ShineVDB's configuration; the leaf size is set per resolution
     TsdfMapperConfig tsdf;  ///< TSDF configuration; voxel size and truncation set per resolution,
                             ///< preprocessing replaced by shine.preprocess
+                            ///< except its voxel_downsample_m
     double trunc_voxels = 3.0;  ///< TSDF truncation in voxels (VDBFusion: 0.3 m at 0.1 m)
     EvalConfig eval;            ///< evaluation protocol (`shine eval`'s defaults)
     /// Scans are kept in memory for the whole study when their files total at most this many

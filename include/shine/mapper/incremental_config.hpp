@@ -10,21 +10,15 @@
 namespace shine {
 
 struct IncrementalConfig {
-    /// Optimisation steps on each scan (the paper runs 50 at 0.5 m leaves). With the scan thinned
-    /// to voxel_downsample_m below and the larger learning rate, 40 steps of training.batch_size
-    /// samples score higher on the street than 100 did on the scan thinned to 0.05 m, in 40 % of
-    /// the time (docs/performance.md).
+    /// Optimisation steps on each scan (the paper runs 50 at 0.5 m leaves). With the scans thinned
+    /// to preprocess.voxel_downsample_m = 0.2 m and the larger learning rate, 40 steps of
+    /// training.batch_size samples score higher on the street than 100 did on the scan thinned to
+    /// 0.05 m, in 40 % of the time (docs/performance.md).
     int iterations_per_frame = 40;
     /// Feature learning rate at the start of each scan's steps (replaces
     /// training.learning_rate in incremental mode; it decays to final_learning_rate_ratio of
     /// this over the scan's steps).
     float learning_rate = 0.02f;
-    /// Voxel size of the scan's downsampling (replaces preprocess.voxel_downsample_m in
-    /// incremental mode). One endpoint per 0.2 m voxel spreads a scan's samples evenly over
-    /// the surface instead of crowding them near the sensor, where a 0.05 m grid keeps most
-    /// points: on the street it scores higher and leaves a third of the rays to sample, find
-    /// normals for and allocate (docs/performance.md).
-    double voxel_downsample_m = 0.2;
     ImportanceConfig importance;  ///< lambda_r (0 = no regulariser) and Omega_m
     /// The frozen decoder: "builtin" (models/decoder_pretrained.yaml, compiled in), a path to a
     /// file written by `shine pretrain`, or "none" (start from the random decoder and train it
