@@ -10,6 +10,7 @@
 #include <random>
 
 #include "shine/core/error.hpp"
+#include "shine/core/mt19937_64_prefix.hpp"
 #include "shine/map/feature_octree_impl.hpp"
 
 namespace shine {
@@ -259,7 +260,7 @@ void FeatureOctree::initial_feature(std::uint64_t seed, int level, const Eigen::
     h = mix64(h ^ static_cast<std::uint32_t>(corner.x()));
     h = mix64(h ^ static_cast<std::uint32_t>(corner.y()));
     h = mix64(h ^ static_cast<std::uint32_t>(corner.z()));
-    std::mt19937_64 rng(h);
+    Mt19937_64Prefix rng(h);  // std::mt19937_64(h)'s outputs, without its whole state
     std::normal_distribution<float> normal(0.0f, init_std);
     for (int i = 0; i < feature_dim; ++i) out[i] = normal(rng);
 }
