@@ -4,8 +4,7 @@
 // megabytes that gains a few rows with every scan, that is a full copy per scan and, for a moment,
 // the table twice. This array grows with realloc instead: glibc serves blocks this large with
 // mmap and grows them with mremap, which moves page-table entries rather than bytes, so growth
-// costs neither the copy nor the second table. Arrays of 2 MiB and more ask for transparent
-// huge pages (huge_pages.hpp): their values are read in random order.
+// costs neither the copy nor the second table.
 #pragma once
 
 #include <cstddef>
@@ -14,8 +13,6 @@
 #include <new>
 #include <type_traits>
 #include <utility>
-
-#include "shine/core/huge_pages.hpp"
 
 namespace shine {
 
@@ -71,8 +68,6 @@ class TrivialArray {
         void* grown = std::realloc(data_, n * sizeof(T));
         if (!grown) throw std::bad_alloc();
         data_ = static_cast<T*>(grown);
-        // Before the new values are written, so that they are first touched as huge pages.
-        if (n > size_) advise_huge_pages(data_, n * sizeof(T));
         for (std::size_t i = size_; i < n; ++i) data_[i] = fill;
         size_ = n;
     }
