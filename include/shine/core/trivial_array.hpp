@@ -4,7 +4,9 @@
 // megabytes that gains a few rows with every scan, that is a full copy per scan and, for a moment,
 // the table twice. This array grows with realloc instead: glibc serves blocks this large with
 // mmap and grows them with mremap, which moves page-table entries rather than bytes, so growth
-// costs neither the copy nor the second table.
+// costs neither the copy nor the second table. (Nothing may split the block's mapping: an
+// madvise() on part of it, for transparent huge pages, made every later growth a full copy,
+// because mremap() moves only whole mappings; docs/performance.md.)
 #pragma once
 
 #include <cstddef>
