@@ -1,7 +1,11 @@
 // TrivialArray: an exactly sized array that grows in place (the feature table's storage).
 #include <gtest/gtest.h>
 
+#include <cinttypes>
 #include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <string>
 #include <vector>
 
 #include "shine/core/trivial_array.hpp"
@@ -60,3 +64,36 @@ TEST(TrivialArray, CopiesAreIndependentAndMovesTakeTheBlock) {
     const TrivialArray<double> d(c.begin(), c.end());
     EXPECT_EQ(d[2], 3.25);
 }
+
+#if defined(__linux__)
+namespace {
+/// Number of mappings in /proc/self/maps that overlap [begin, end).
+int mappings_overlapping(const void* begin, const void* end) {
+    std::ifstream maps("/proc/self/maps");
+    std::string line;
+    int count = 0;
+    const auto lo = reinterpret_cast<std::uintptr_t>(begin);
+    const auto hi = reinterpret_cast<std::uintptr_t>(end);
+    while (std::getline(maps, line)) {
+        std::uintptr_t from = 0, to = 0;
+        if (std::sscanf(line.c_str(), "%" SCNxPTR "-%" SCNxPTR, &from, &to) != 2) continue;
+        if (from < hi && lo < to) ++count;
+    }
+    return count;
+}
+}  // namespace
+
+TEST(TrivialArray, ALargeBlockStaysOneMappingSoThatItGrowsWithoutACopy) {
+    // glibc grows a large block with mremap(), which moves only whole mappings: anything that
+    // splits the block's mapping (an madvise() on part of it did) turns every later growth into
+    // a copy of the whole array, as for a city-scale feature table on every scan.
+    TrivialArray<float> a;
+    std::size_t n = std::size_t(8) << 20;  // 32 MiB, served by mmap
+    for (int step = 0; step < 8; ++step) {
+        a.resize(n, 1.0f);
+        ASSERT_EQ(mappings_overlapping(a.data(), a.data() + a.size()), 1)
+            << "after " << n << " values";
+        n += n / 16;
+    }
+}
+#endif
