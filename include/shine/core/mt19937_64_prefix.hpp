@@ -22,7 +22,7 @@ class Mt19937_64Prefix {
     static constexpr result_type min() { return 0; }
     static constexpr result_type max() { return ~result_type(0); }
 
-    explicit Mt19937_64Prefix(std::uint64_t seed) : seed_(seed) { words_[0] = seed; }
+    explicit Mt19937_64Prefix(std::uint64_t seed) { words_[0] = seed; }
 
     result_type operator()() {
         if (next_ >= kShift) return from_library();
@@ -50,15 +50,14 @@ class Mt19937_64Prefix {
 
     result_type from_library() {
         if (!library_) {
-            library_ = std::make_unique<std::mt19937_64>(seed_);
+            library_ = std::make_unique<std::mt19937_64>(words_[0]);  // the seed
             library_->discard(kShift);
         }
         return (*library_)();
     }
 
-    std::uint64_t seed_;
     int next_ = 0;    ///< outputs read
-    int seeded_ = 1;  ///< words_[0, seeded_) hold the seeded state
+    int seeded_ = 1;  ///< words_[0, seeded_) hold the seeded state; words_[0] is the seed
     std::uint64_t words_[2 * kShift];
     std::unique_ptr<std::mt19937_64> library_;
 };
