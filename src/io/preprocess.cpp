@@ -130,6 +130,10 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
         };
         std::unordered_map<VoxelKey, Best, VoxelKeyHash> voxels;
         voxels.reserve(kept.size());
+        // A scan lists its points along the beams, so consecutive points often share a voxel:
+        // the previous point's voxel is checked before the table (the map's values do not move).
+        VoxelKey last_key{0, 0, 0};
+        Best* last = nullptr;
         for (std::size_t i = 0; i < kept.size(); ++i) {
             const Eigen::Vector3d scaled = kept[i].cast<double>() / v;
             const Eigen::Vector3d cell = scaled.array().floor();
@@ -143,13 +147,16 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
                                static_cast<std::int64_t>(cell.z())};
             // Distance to the voxel centre in voxel units (same order as in metres).
             const double d2 = (scaled - cell - Eigen::Vector3d::Constant(0.5)).squaredNorm();
-            auto [it, inserted] = voxels.try_emplace(key, Best{i, d2});
-            if (!inserted) {
-                Best& best = it->second;
-                if (d2 < best.distance2 ||
-                    (d2 == best.distance2 && lexicographic_less(kept[i], kept[best.index]))) {
-                    best = Best{i, d2};
-                }
+            if (last == nullptr || !(key == last_key)) {
+                auto [it, inserted] = voxels.try_emplace(key, Best{i, d2});
+                last_key = key;
+                last = &it->second;
+                if (inserted) continue;
+            }
+            Best& best = *last;
+            if (d2 < best.distance2 ||
+                (d2 == best.distance2 && lexicographic_less(kept[i], kept[best.index]))) {
+                best = Best{i, d2};
             }
         }
         // Output sorted by voxel key: the result is then independent of the input order, not
