@@ -32,17 +32,24 @@ using IndexAccessor = openvdb::tree::ValueAccessor<const IndexTree, false>;
 
 openvdb::Coord to_coord(const Eigen::Vector3i& v) { return openvdb::Coord(v.x(), v.y(), v.z()); }
 
-bool lookup_cell(IndexAccessor& accessor, const LevelIndex& level, double cell_size_m,
-                 const Eigen::Vector3f& p, LevelCorners& out) {
+/// The cell of `p` on a level: its (0,0,0) corner in the level's index space, and p's position
+/// inside the cell in t.
+openvdb::Coord cell_base(const LevelIndex& level, double cell_size_m, const Eigen::Vector3f& p,
+                         float t[3]) {
     const openvdb::Coord& shift = level.shift;
     const double inv = 1.0 / cell_size_m;
     const double gx = p.x() * inv, gy = p.y() * inv, gz = p.z() * inv;
     const double fx = std::floor(gx), fy = std::floor(gy), fz = std::floor(gz);
-    out.t[0] = static_cast<float>(gx - fx);
-    out.t[1] = static_cast<float>(gy - fy);
-    out.t[2] = static_cast<float>(gz - fz);
-    const openvdb::Coord base(static_cast<int>(fx) + shift.x(), static_cast<int>(fy) + shift.y(),
-                              static_cast<int>(fz) + shift.z());
+    t[0] = static_cast<float>(gx - fx);
+    t[1] = static_cast<float>(gy - fy);
+    t[2] = static_cast<float>(gz - fz);
+    return openvdb::Coord(static_cast<int>(fx) + shift.x(), static_cast<int>(fy) + shift.y(),
+                          static_cast<int>(fz) + shift.z());
+}
+
+/// The rows of the 8 corners of the cell at `base`; false if one of them is not allocated.
+bool cell_rows(IndexAccessor& accessor, const LevelIndex& level, const openvdb::Coord& base,
+               std::int32_t rows[8]) {
     constexpr int kLeafMask = static_cast<int>(IndexLeaf::DIM) - 1;
     if ((base.x() & kLeafMask) != kLeafMask && (base.y() & kLeafMask) != kLeafMask &&
         (base.z() & kLeafMask) != kLeafMask) {
@@ -61,9 +68,8 @@ bool lookup_cell(IndexAccessor& accessor, const LevelIndex& level, double cell_s
             const openvdb::Index64 word = mask.getWord<openvdb::Index64>(w);
             if (!((word >> bit) & 1)) return false;
             const std::uint64_t before_word = w ? (slots.word_prefix >> (9 * (w - 1))) & 511u : 0u;
-            out.rows[c] =
-                level.rows[slots.first_slot + before_word +
-                           openvdb::util::CountOn(word & ((openvdb::Index64(1) << bit) - 1))];
+            rows[c] = level.rows[slots.first_slot + before_word +
+                                 openvdb::util::CountOn(word & ((openvdb::Index64(1) << bit) - 1))];
         }
         return true;
     }
@@ -72,9 +78,14 @@ bool lookup_cell(IndexAccessor& accessor, const LevelIndex& level, double cell_s
             index_row(accessor, level,
                       base.offsetBy(kCornerOffset[c][0], kCornerOffset[c][1], kCornerOffset[c][2]));
         if (row < 0) return false;
-        out.rows[c] = row;
+        rows[c] = row;
     }
     return true;
+}
+
+bool lookup_cell(IndexAccessor& accessor, const LevelIndex& level, double cell_size_m,
+                 const Eigen::Vector3f& p, LevelCorners& out) {
+    return cell_rows(accessor, level, cell_base(level, cell_size_m, p, out.t), out.rows);
 }
 
 FeatureOctreeConfig validated(const FeatureOctreeConfig& config) {
@@ -473,6 +484,15 @@ std::size_t FeatureOctree::memory_bytes() const { return feature_bytes() + struc
 struct CellLookup::Accessors {
     std::vector<IndexAccessor> accessors;
     std::vector<const LevelIndex*> levels;
+    /// Per level, the last cell looked up: samples along one ray (and neighbouring voxels of a
+    /// bake) often fall in the same cell, above all on the coarser levels.
+    struct Recent {
+        openvdb::Coord base;
+        bool valid = false;
+        bool found = false;
+        std::int32_t rows[8];
+    };
+    std::vector<Recent> recent;
 };
 
 CellLookup::CellLookup(const FeatureOctree& octree)
@@ -481,13 +501,22 @@ CellLookup::CellLookup(const FeatureOctree& octree)
         accessors_->accessors.emplace_back(level.grid->tree());
         accessors_->levels.push_back(&level);
     }
+    accessors_->recent.resize(accessors_->levels.size());
 }
 
 CellLookup::~CellLookup() = default;
 
 bool CellLookup::find_cell(int level, const Eigen::Vector3f& point_map, LevelCorners& out) {
-    return lookup_cell(accessors_->accessors[level], *accessors_->levels[level],
-                       octree_.cell_size_m(level), point_map, out);
+    const LevelIndex& index = *accessors_->levels[level];
+    const openvdb::Coord base = cell_base(index, octree_.cell_size_m(level), point_map, out.t);
+    Accessors::Recent& recent = accessors_->recent[level];
+    if (!recent.valid || recent.base != base) {
+        recent.base = base;
+        recent.valid = true;
+        recent.found = cell_rows(accessors_->accessors[level], index, base, recent.rows);
+    }
+    if (recent.found) std::copy(recent.rows, recent.rows + 8, out.rows);
+    return recent.found;
 }
 
 }  // namespace shine
