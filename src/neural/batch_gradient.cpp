@@ -5,8 +5,13 @@
 namespace shine {
 namespace {
 
-template <typename T>
-void gather_batch(BatchGradient& out, const T* table, int dim, Eigen::MatrixXf& X) {
+/// F = sum_k w_k f_k and, for Eikonal samples, the Jacobian dF/dx = sum_k f_k dw_k^T, stored
+/// axis-major (jacobian[a * dim + l] = dF_l/dx_a) so that the sum over the corners runs along
+/// the features in vector registers. Both sums take the corners in order, as
+/// gather_feature() and feature_jacobian() do. Dim > 0 fixes the feature size at compile time.
+template <int Dim, typename T>
+void gather_batch(BatchGradient& out, const T* table, int runtime_dim, Eigen::MatrixXf& X) {
+    const int dim = Dim > 0 ? Dim : runtime_dim;
     constexpr std::size_t kAhead = 2;
     const int stride = out.corner_stride;
     const std::size_t n = out.num_valid();
@@ -19,26 +24,75 @@ void gather_batch(BatchGradient& out, const T* table, int dim, Eigen::MatrixXf& 
         }
         const std::int32_t* rows = out.rows.data() + b * stride;
         const float* weights = out.coefficients.data() + b * stride;
+        const int corners = out.corners[b];
         float* feature = X.col(Eigen::Index(b)).data();
-        std::fill(feature, feature + dim, 0.0f);
-        for (int k = 0; k < out.corners[b]; ++k) {
-            const T* f = table + std::size_t(rows[k]) * dim;
-            for (int l = 0; l < dim; ++l) feature[l] += weights[k] * static_cast<float>(f[l]);
+        if constexpr (Dim > 0) {
+            // Sums in local arrays, which the compiler keeps in vector registers.
+            float sum_f[Dim] = {}, sum_x[Dim] = {}, sum_y[Dim] = {}, sum_z[Dim] = {};
+            if (!out.eikonal[b]) {
+                for (int k = 0; k < corners; ++k) {
+                    const T* f = table + std::size_t(rows[k]) * Dim;
+                    const float w = weights[k];
+                    for (int l = 0; l < Dim; ++l) sum_f[l] += w * static_cast<float>(f[l]);
+                }
+                std::copy(sum_f, sum_f + Dim, feature);
+                continue;
+            }
+            const float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
+            for (int k = 0; k < corners; ++k) {
+                const T* f = table + std::size_t(rows[k]) * Dim;
+                const float w = weights[k];
+                const float gx = dw[k * 3 + 0], gy = dw[k * 3 + 1], gz = dw[k * 3 + 2];
+                for (int l = 0; l < Dim; ++l) {
+                    const float fl = static_cast<float>(f[l]);
+                    sum_f[l] += w * fl;
+                    sum_x[l] += fl * gx;
+                    sum_y[l] += fl * gy;
+                    sum_z[l] += fl * gz;
+                }
+            }
+            float* jacobian = out.jacobian.data() + b * 3 * Dim;
+            std::copy(sum_f, sum_f + Dim, feature);
+            std::copy(sum_x, sum_x + Dim, jacobian);
+            std::copy(sum_y, sum_y + Dim, jacobian + Dim);
+            std::copy(sum_z, sum_z + Dim, jacobian + 2 * Dim);
+            continue;
         }
-        if (!out.eikonal[b]) continue;
-        // J = dF/dx, dim x 3 row-major (as feature_jacobian()).
-        float* jacobian = out.jacobian.data() + b * 3 * dim;
-        std::fill(jacobian, jacobian + 3 * dim, 0.0f);
+        std::fill(feature, feature + dim, 0.0f);
+        if (!out.eikonal[b]) {
+            for (int k = 0; k < corners; ++k) {
+                const T* f = table + std::size_t(rows[k]) * dim;
+                const float w = weights[k];
+                for (int l = 0; l < dim; ++l) feature[l] += w * static_cast<float>(f[l]);
+            }
+            continue;
+        }
+        float* jx = out.jacobian.data() + b * 3 * dim;
+        float* jy = jx + dim;
+        float* jz = jy + dim;
+        std::fill(jx, jx + 3 * dim, 0.0f);
         const float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
-        for (int k = 0; k < out.corners[b]; ++k) {
+        for (int k = 0; k < corners; ++k) {
             const T* f = table + std::size_t(rows[k]) * dim;
+            const float w = weights[k];
+            const float gx = dw[k * 3 + 0], gy = dw[k * 3 + 1], gz = dw[k * 3 + 2];
             for (int l = 0; l < dim; ++l) {
                 const float fl = static_cast<float>(f[l]);
-                jacobian[l * 3 + 0] += fl * dw[k * 3 + 0];
-                jacobian[l * 3 + 1] += fl * dw[k * 3 + 1];
-                jacobian[l * 3 + 2] += fl * dw[k * 3 + 2];
+                feature[l] += w * fl;
+                jx[l] += fl * gx;
+                jy[l] += fl * gy;
+                jz[l] += fl * gz;
             }
         }
+    }
+}
+
+template <typename T>
+void gather_batch(BatchGradient& out, const T* table, int dim, Eigen::MatrixXf& X) {
+    if (dim == 8) {
+        gather_batch<8>(out, table, dim, X);
+    } else {
+        gather_batch<0>(out, table, dim, X);
     }
 }
 
@@ -118,10 +172,10 @@ void batch_loss_gradient(const NeuralSdf& sdf, CellLookup& lookup, const RaySamp
         for (int k = 0; k < corners; ++k) coefficients[k] *= bce.gradient;
         if (!out.eikonal[b]) continue;
         const float* h = out.h(b);
-        const float* jacobian = out.jacobian.data() + b * 3 * dim;
+        const float* jacobian = out.jacobian.data() + b * 3 * dim;  // axis-major
         float g[3] = {0.0f, 0.0f, 0.0f};
         for (int l = 0; l < dim; ++l) {
-            for (int a = 0; a < 3; ++a) g[a] += jacobian[l * 3 + a] * h[l];
+            for (int a = 0; a < 3; ++a) g[a] += jacobian[a * dim + l] * h[l];
         }
         float de_dg[3];
         out.eikonal_sum += eikonal_loss(g, de_dg);
@@ -134,8 +188,8 @@ void batch_loss_gradient(const NeuralSdf& sdf, CellLookup& lookup, const RaySamp
         if (decoder_grads) {
             float* de_dh = out.grad_input_gradient.col(b).data();
             for (int l = 0; l < dim; ++l) {
-                de_dh[l] = jacobian[l * 3 + 0] * de_dg[0] + jacobian[l * 3 + 1] * de_dg[1] +
-                           jacobian[l * 3 + 2] * de_dg[2];
+                de_dh[l] = jacobian[l] * de_dg[0] + jacobian[dim + l] * de_dg[1] +
+                           jacobian[2 * dim + l] * de_dg[2];
             }
         }
     }

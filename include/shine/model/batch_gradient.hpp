@@ -40,7 +40,7 @@ struct BatchGradient {
 
     // Scratch of the Eikonal term, per valid sample.
     std::vector<float> weight_gradients_per_m;  ///< 3 x corner_stride
-    std::vector<float> jacobian;                ///< dF/dx, 3 x L (surface samples only)
+    std::vector<float> jacobian;                ///< dF/dx, axis-major 3 x L (surface samples)
     std::vector<std::uint8_t> eikonal;          ///< 1 when the sample gets the Eikonal term
     Eigen::RowVectorXf grad_output;             ///< dL/df per valid sample
     Eigen::MatrixXf grad_input_gradient;        ///< dL_eikonal/dh per valid sample, L x B
