@@ -6,13 +6,14 @@
 //   current scan began, snapshotted when the scan first touches the row (for a row not touched
 //   since the last scan ended, that is the converged value of paper Eq. (3));
 //   the float32 master copy of a float16 map (mixed precision).
-// A row's state is one contiguous block, so a touched row costs one or two cache misses instead
-// of one per table. Blocks live in pages of kRowsPerPage consecutive rows (rows are appended in
-// scan order, so a page holds one stretch of the drive), allocated when a row of the page is
-// first touched and freed by release_unused_pages() once no row of the page was touched for a
-// while: on a long drive the optimiser's memory follows the active region, not the whole map.
-// A released row starts again from zero moments (and from its rounded value as master copy),
-// as a row does the first time it is trained.
+// A row's state is one contiguous block, its counters (step, anchor scan, master flag) next to its
+// floats and the block padded to a multiple of 32 bytes, so a touched row costs two cache misses
+// (8 features with anchors: 128 bytes) instead of one per table. Blocks live in pages of
+// kRowsPerPage consecutive rows (rows are appended in scan order, so a page holds one stretch of
+// the drive), allocated when a row of the page is first touched and freed by release_unused_pages()
+// once no row of the page was touched for a while: on a long drive the optimiser's memory follows
+// the active region, not the whole map. A released row starts again from zero moments (and from its
+// rounded value as master copy), as a row does the first time it is trained.
 #pragma once
 
 #include <atomic>
@@ -74,6 +75,7 @@ class FeatureRowState {
     bool with_anchor_;
     bool with_master_;
     std::size_t floats_per_row_;
+    std::size_t words_per_row_;  ///< a row's block: its floats, its counters, padding
     std::size_t num_rows_ = 0;
     std::vector<std::atomic<Page*>> pages_;
 };
