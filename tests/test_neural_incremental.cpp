@@ -136,6 +136,8 @@ TEST(IncrementalTrainer, ImportancePassSumsFiniteDifferenceBceGradientNorms) {
     TrainerConfig trainer_config;
     trainer_config.sigma_m = 0.1f;
     SamplingConfig sampling;
+    sampling.surface_samples = 3;  // more samples per ray than the default: more rows checked
+    sampling.free_samples = 3;
     Trainer trainer(scene.sdf, trainer_config, sampling);
     const std::uint64_t pass = 7;
     RowGradientNormSums sparse;

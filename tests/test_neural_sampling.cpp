@@ -4,9 +4,9 @@
 #include <cmath>
 #include <vector>
 
-#include "shine/sampling/surface_normals.hpp"
 #include "shine/sampling/ray_sampler.hpp"
 #include "shine/sampling/ray_set.hpp"
+#include "shine/sampling/surface_normals.hpp"
 
 using namespace shine;
 
@@ -15,7 +15,9 @@ TEST(RaySampler, LabelsAreProjectiveDistancesOnAKnownRay) {
     const Eigen::Vector3f direction = Eigen::Vector3f(3.0f, 4.0f, 0.0f).normalized();
     const float range_m = 20.0f;
     const Eigen::Vector3f endpoint = origin + range_m * direction;
-    SamplingConfig config;  // 3 surface samples within +-0.3 m, 3 free from 0.3 r
+    SamplingConfig config;  // surface samples within +-0.3 m, free ones from 0.3 r
+    config.surface_samples = 3;
+    config.free_samples = 3;
     Pcg32 rng(7);
     for (int trial = 0; trial < 100; ++trial) {
         RaySample samples[6];
@@ -76,6 +78,7 @@ TEST(RaySampler, IncidenceScaleIsClampedForGrazingRays) {
     const Eigen::Vector3f endpoint(50.0f, 0.0f, 0.0f);  // cos = 0.002
     SamplingConfig config;
     config.surface_samples = 0;
+    config.free_samples = 3;
     Pcg32 rng(5);
     RaySample samples[3];
     sample_ray(origin, endpoint, Eigen::Vector3f::UnitZ(), config, rng, samples);

@@ -84,6 +84,8 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     if (inc.decoder_weights != "none") config_.trainer.train_decoder = false;
     config_.sampling.surface_band_m = inc.surface_band_m;
     config_.trainer.feature_adam.learning_rate = inc.learning_rate;
+    config_.trainer.batch_size = inc.batch_size;
+    config_.normals.neighbors = inc.normal_neighbors;
     if (inc.active_frames < 0) throw ConfigError("incremental.active_frames must be >= 0");
     trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
     importance_ = ImportanceWeights(inc.importance, config_.octree.feature_dim);
