@@ -11,11 +11,12 @@ namespace shine {
 
 struct IncrementalConfig {
     /// Optimisation steps on each scan (the paper runs 50 at 0.5 m leaves), of batch_size samples
-    /// each. With the scans thinned to preprocess.voxel_downsample_m = 0.2 m, 12 steps of 8192
-    /// samples score within half a point of 40 steps of 4096 on the street, in about half the
-    /// time: fewer, larger steps update each touched feature row fewer times for the same samples
-    /// (docs/performance.md).
-    int iterations_per_frame = 12;
+    /// each. With the scans thinned to preprocess.voxel_downsample_m = 0.2 m, 11 steps of 8192
+    /// samples score 0.8 points below 40 steps of 4096 on the street (92.8 %, still above the
+    /// scores before the speed work) in about 60 % of the time, so that a frame takes 0.1 s on
+    /// two cores; 12 steps score 93.0 %, 15 steps 93.6 %. Fewer, larger steps update each touched
+    /// feature row fewer times for the same samples (docs/performance.md).
+    int iterations_per_frame = 11;
     /// Samples per step in incremental mode (replaces training.batch_size).
     int batch_size = 8192;
     /// Feature learning rate at the start of each scan's steps (replaces
@@ -41,8 +42,9 @@ struct IncrementalConfig {
     int normal_neighbors = 10;
     /// The importance pass (Eq. (4)) uses every n-th ray of the scan: Omega grows by the mean
     /// gradient norm over the scan's samples (see importance_weights.hpp), which a subsample
-    /// estimates; measured in docs/performance.md.
-    int importance_ray_stride = 8;
+    /// estimates (every 16th ray: 0.05 points below every 8th on the street, in half the time;
+    /// docs/performance.md).
+    int importance_ray_stride = 16;
     /// Optimiser state (Adam's moments, anchors, master copy) is kept for the rows that one of
     /// the last `active_frames` frames trained, and dropped for the rest, so that its memory
     /// follows the region being mapped on a long drive (feature_row_state.hpp). 0: keep it all.
