@@ -190,11 +190,11 @@ TEST(BakeAndMesh, AnalyticPlaneAndSphereWithSubVoxelError) {
 TEST(MapperConfig, AutoIterationsGrowForLeavesFinerThanTheDefault) {
     MapperConfig config;
     EXPECT_EQ(config.iterations, -1);
-    EXPECT_EQ(config.batch_iterations(), 3000);  // default 0.2 m leaf
+    EXPECT_EQ(config.batch_iterations(), 2400);  // default 0.2 m leaf
     config.octree.leaf_size_m = 0.1;
-    EXPECT_EQ(config.batch_iterations(), 8485);
+    EXPECT_EQ(config.batch_iterations(), 6788);
     config.octree.leaf_size_m = 1.0;
-    EXPECT_EQ(config.batch_iterations(), 3000);  // coarse maps keep the default
+    EXPECT_EQ(config.batch_iterations(), 2400);  // coarse maps keep the default
     config.octree.leaf_size_m = 0.001;
     EXPECT_EQ(config.batch_iterations(), 50000);  // clamped
     config.iterations = 0;                        // explicit values are kept, 0 included

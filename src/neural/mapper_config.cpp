@@ -213,8 +213,8 @@ PreprocessConfig mapper_preprocess_defaults() {
 
 int MapperConfig::batch_iterations() const {
     if (iterations >= 0) return iterations;
-    const double scaled = 3000.0 * std::pow(0.2 / octree.leaf_size_m, 1.5);
-    return static_cast<int>(std::lround(std::clamp(scaled, 3000.0, 50000.0)));
+    const double scaled = 2400.0 * std::pow(0.2 / octree.leaf_size_m, 1.5);
+    return static_cast<int>(std::lround(std::clamp(scaled, 2400.0, 50000.0)));
 }
 
 void MapperConfig::finalize() {

@@ -55,10 +55,11 @@ struct MapperConfig {
     int threads = 0;          ///< 0: all hardware threads
     std::uint64_t seed = 42;  ///< one seed for features, decoder and sampling
 
-    /// Steps batch mode runs: `iterations`, or for auto 3000 at the default 0.2 m leaf and
-    /// 3000 * (0.2 m / leaf_size_m)^1.5 for finer leaves (a surface map has ~4x the features per
-    /// halving of the leaf; 8485 at 0.1 m), at most 50,000. Half the steps that scans thinned
-    /// to 0.05 m needed, at a higher F-score (docs/performance.md).
+    /// Steps batch mode runs: `iterations`, or for auto 2400 at the default 0.2 m leaf and
+    /// 2400 * (0.2 m / leaf_size_m)^1.5 for finer leaves (a surface map has ~4x the features per
+    /// halving of the leaf; 6788 at 0.1 m), at most 50,000. With scans thinned to 0.2 m and two
+    /// surface samples and one free-space sample per ray, 2400 steps score higher on the street
+    /// than 6000 did on scans thinned to 0.05 m (docs/performance.md).
     int batch_iterations() const;
 
     /// Copies feature_dim/seed into the sub-configs that repeat them, and checks ranges.
