@@ -12,6 +12,7 @@ namespace {
 template <int Dim, typename T>
 void gather_batch(BatchGradient& out, const T* table, int runtime_dim, Eigen::MatrixXf& X) {
     const int dim = Dim > 0 ? Dim : runtime_dim;
+    constexpr int kCapacity = Dim > 0 ? Dim : kMaxFeatureDim;
     constexpr std::size_t kAhead = 2;
     const int stride = out.corner_stride;
     const std::size_t n = out.num_valid();
@@ -26,51 +27,18 @@ void gather_batch(BatchGradient& out, const T* table, int runtime_dim, Eigen::Ma
         const float* weights = out.coefficients.data() + b * stride;
         const int corners = out.corners[b];
         float* feature = X.col(Eigen::Index(b)).data();
-        if constexpr (Dim > 0) {
-            // Sums in local arrays, which the compiler keeps in vector registers.
-            float sum_f[Dim] = {}, sum_x[Dim] = {}, sum_y[Dim] = {}, sum_z[Dim] = {};
-            if (!out.eikonal[b]) {
-                for (int k = 0; k < corners; ++k) {
-                    const T* f = table + std::size_t(rows[k]) * Dim;
-                    const float w = weights[k];
-                    for (int l = 0; l < Dim; ++l) sum_f[l] += w * static_cast<float>(f[l]);
-                }
-                std::copy(sum_f, sum_f + Dim, feature);
-                continue;
-            }
-            const float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
-            for (int k = 0; k < corners; ++k) {
-                const T* f = table + std::size_t(rows[k]) * Dim;
-                const float w = weights[k];
-                const float gx = dw[k * 3 + 0], gy = dw[k * 3 + 1], gz = dw[k * 3 + 2];
-                for (int l = 0; l < Dim; ++l) {
-                    const float fl = static_cast<float>(f[l]);
-                    sum_f[l] += w * fl;
-                    sum_x[l] += fl * gx;
-                    sum_y[l] += fl * gy;
-                    sum_z[l] += fl * gz;
-                }
-            }
-            float* jacobian = out.jacobian.data() + b * 3 * Dim;
-            std::copy(sum_f, sum_f + Dim, feature);
-            std::copy(sum_x, sum_x + Dim, jacobian);
-            std::copy(sum_y, sum_y + Dim, jacobian + Dim);
-            std::copy(sum_z, sum_z + Dim, jacobian + 2 * Dim);
-            continue;
-        }
-        std::fill(feature, feature + dim, 0.0f);
+        // Sums in local arrays, which for a fixed Dim the compiler keeps in vector registers.
+        float sum_f[kCapacity] = {}, sum_x[kCapacity] = {}, sum_y[kCapacity] = {},
+              sum_z[kCapacity] = {};
         if (!out.eikonal[b]) {
             for (int k = 0; k < corners; ++k) {
                 const T* f = table + std::size_t(rows[k]) * dim;
                 const float w = weights[k];
-                for (int l = 0; l < dim; ++l) feature[l] += w * static_cast<float>(f[l]);
+                for (int l = 0; l < dim; ++l) sum_f[l] += w * static_cast<float>(f[l]);
             }
+            std::copy(sum_f, sum_f + dim, feature);
             continue;
         }
-        float* jx = out.jacobian.data() + b * 3 * dim;
-        float* jy = jx + dim;
-        float* jz = jy + dim;
-        std::fill(jx, jx + 3 * dim, 0.0f);
         const float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
         for (int k = 0; k < corners; ++k) {
             const T* f = table + std::size_t(rows[k]) * dim;
@@ -78,12 +46,17 @@ void gather_batch(BatchGradient& out, const T* table, int runtime_dim, Eigen::Ma
             const float gx = dw[k * 3 + 0], gy = dw[k * 3 + 1], gz = dw[k * 3 + 2];
             for (int l = 0; l < dim; ++l) {
                 const float fl = static_cast<float>(f[l]);
-                feature[l] += w * fl;
-                jx[l] += fl * gx;
-                jy[l] += fl * gy;
-                jz[l] += fl * gz;
+                sum_f[l] += w * fl;
+                sum_x[l] += fl * gx;
+                sum_y[l] += fl * gy;
+                sum_z[l] += fl * gz;
             }
         }
+        float* jacobian = out.jacobian.data() + b * 3 * dim;
+        std::copy(sum_f, sum_f + dim, feature);
+        std::copy(sum_x, sum_x + dim, jacobian);
+        std::copy(sum_y, sum_y + dim, jacobian + dim);
+        std::copy(sum_z, sum_z + dim, jacobian + 2 * dim);
     }
 }
 
