@@ -1,5 +1,7 @@
 #include "shine/model/batch_gradient.hpp"
 
+#include <algorithm>
+
 #include "shine/model/sdf_loss.hpp"
 
 namespace shine {
@@ -27,9 +29,10 @@ void gather_batch(BatchGradient& out, const T* table, int runtime_dim, Eigen::Ma
         const float* weights = out.coefficients.data() + b * stride;
         const int corners = out.corners[b];
         float* feature = X.col(Eigen::Index(b)).data();
-        // Sums in local arrays, which for a fixed Dim the compiler keeps in vector registers.
-        float sum_f[kCapacity] = {}, sum_x[kCapacity] = {}, sum_y[kCapacity] = {},
-              sum_z[kCapacity] = {};
+        // Sums in local arrays, which for a fixed Dim the compiler keeps in vector registers;
+        // only the first dim entries are used (and zeroed).
+        float sum_f[kCapacity], sum_x[kCapacity], sum_y[kCapacity], sum_z[kCapacity];
+        std::fill(sum_f, sum_f + dim, 0.0f);
         if (!out.eikonal[b]) {
             for (int k = 0; k < corners; ++k) {
                 const T* f = table + std::size_t(rows[k]) * dim;
@@ -39,6 +42,9 @@ void gather_batch(BatchGradient& out, const T* table, int runtime_dim, Eigen::Ma
             std::copy(sum_f, sum_f + dim, feature);
             continue;
         }
+        std::fill(sum_x, sum_x + dim, 0.0f);
+        std::fill(sum_y, sum_y + dim, 0.0f);
+        std::fill(sum_z, sum_z + dim, 0.0f);
         const float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
         for (int k = 0; k < corners; ++k) {
             const T* f = table + std::size_t(rows[k]) * dim;
