@@ -21,17 +21,15 @@ std::size_t block_words(std::size_t floats_per_row) {
 }
 }  // namespace
 
-/// kRowsPerPage blocks of words_per_row 4-byte words: the row's floats, then its counters, then
-/// padding. The counters share the floats' cache lines: a touched row costs two cache misses for
-/// the state (with 8 features and anchors, one 128-byte block) instead of three.
+/// kRowsPerPage blocks of words_per_row_ 4-byte words: the row's floats, then its counters, then
+/// padding (floats_at / counters_at). The counters share the floats' cache lines: a touched row
+/// costs two cache misses for the state (with 8 features and anchors, one 128-byte block)
+/// instead of three.
 struct FeatureRowState::Page {
-    std::size_t words_per_row;
-    std::size_t floats_per_row;
     void* storage;
     std::atomic<std::uint32_t> last_scan{0};
 
-    Page(std::size_t floats, std::size_t words) : words_per_row(words), floats_per_row(floats) {
-        const std::size_t bytes = kRowsPerPage * words * 4;
+    explicit Page(std::size_t bytes) {
         storage = std::aligned_alloc(kPageAlignBytes, bytes);
         if (!storage) throw std::bad_alloc();
         std::memset(storage, 0, bytes);
@@ -39,18 +37,19 @@ struct FeatureRowState::Page {
     ~Page() { std::free(storage); }
     Page(const Page&) = delete;
     Page& operator=(const Page&) = delete;
-
-    float* floats(std::size_t slot) { return static_cast<float*>(storage) + slot * words_per_row; }
-    std::uint32_t* counters(std::size_t slot) {
-        return static_cast<std::uint32_t*>(storage) + slot * words_per_row + floats_per_row;
-    }
-    const float* floats(std::size_t slot) const {
-        return static_cast<const float*>(storage) + slot * words_per_row;
-    }
-    const std::uint32_t* counters(std::size_t slot) const {
-        return static_cast<const std::uint32_t*>(storage) + slot * words_per_row + floats_per_row;
-    }
 };
+
+std::size_t FeatureRowState::page_bytes() const {
+    return kRowsPerPage * words_per_row_ * sizeof(std::uint32_t);
+}
+
+float* FeatureRowState::floats_at(const Page& page, std::size_t slot) const {
+    return static_cast<float*>(page.storage) + slot * words_per_row_;
+}
+
+std::uint32_t* FeatureRowState::counters_at(const Page& page, std::size_t slot) const {
+    return static_cast<std::uint32_t*>(page.storage) + slot * words_per_row_ + floats_per_row_;
+}
 
 FeatureRowState::FeatureRowState(int dim, bool with_anchor, bool with_master)
     : dim_(dim),
@@ -104,7 +103,7 @@ FeatureRowState::Page* FeatureRowState::page_of(std::size_t page_index) {
     if (page) return page;
     // First use: whoever installs a page first wins; the others free theirs. The content (zeros)
     // is the same, so the result does not depend on which thread won.
-    auto fresh = std::make_unique<Page>(floats_per_row_, words_per_row_);
+    auto fresh = std::make_unique<Page>(page_bytes());
     if (pages_[page_index].compare_exchange_strong(page, fresh.get(), std::memory_order_acq_rel)) {
         return fresh.release();
     }
@@ -118,8 +117,8 @@ FeatureRowState::Row FeatureRowState::touch(std::int32_t row, std::uint32_t scan
         page->last_scan.store(scan, std::memory_order_relaxed);
     }
     const std::size_t slot = r % kRowsPerPage;
-    float* block = page->floats(slot);
-    std::uint32_t* ints = page->counters(slot);
+    float* block = floats_at(*page, slot);
+    std::uint32_t* ints = counters_at(*page, slot);
     const std::size_t d = static_cast<std::size_t>(dim_);
     return {block,
             block + d,
@@ -149,8 +148,7 @@ std::size_t FeatureRowState::resident_pages() const {
 }
 
 std::size_t FeatureRowState::memory_bytes() const {
-    const std::size_t page_bytes = kRowsPerPage * words_per_row_ * 4;
-    return resident_pages() * page_bytes + pages_.capacity() * sizeof(std::atomic<Page*>);
+    return resident_pages() * page_bytes() + pages_.capacity() * sizeof(std::atomic<Page*>);
 }
 
 void FeatureRowState::save(BinaryWriter& out) const {
@@ -169,9 +167,9 @@ void FeatureRowState::save(BinaryWriter& out) const {
         out.value<std::uint32_t>(page->last_scan.load());
         // The file keeps the page's floats and then its counters, each in row order.
         for (std::size_t slot = 0; slot < kRowsPerPage; ++slot) {
-            std::copy_n(page->floats(slot), floats_per_row_,
+            std::copy_n(floats_at(*page, slot), floats_per_row_,
                         floats.begin() + std::ptrdiff_t(slot * floats_per_row_));
-            std::copy_n(page->counters(slot), kCounters,
+            std::copy_n(counters_at(*page, slot), kCounters,
                         counters.begin() + std::ptrdiff_t(slot * kCounters));
         }
         out.array(floats);
@@ -204,15 +202,15 @@ void FeatureRowState::load(BinaryReader& in) {
         if (index >= pages_.size() || pages_[index].load()) {
             in.fail("page index", std::to_string(index) + " is out of range or repeated");
         }
-        auto page = std::make_unique<Page>(floats_per_row_, words_per_row_);
+        auto page = std::make_unique<Page>(page_bytes());
         page->last_scan.store(in.value<std::uint32_t>("page scan"));
         in.array_into(floats.data(), floats.size(), "page values");
         in.array_into(counters.data(), counters.size(), "page counters");
         for (std::size_t slot = 0; slot < kRowsPerPage; ++slot) {
             std::copy_n(floats.begin() + std::ptrdiff_t(slot * floats_per_row_), floats_per_row_,
-                        page->floats(slot));
+                        floats_at(*page, slot));
             std::copy_n(counters.begin() + std::ptrdiff_t(slot * kCounters), kCounters,
-                        page->counters(slot));
+                        counters_at(*page, slot));
         }
         pages_[index].store(page.release());
     }

@@ -70,6 +70,10 @@ class FeatureRowState {
   private:
     struct Page;
     Page* page_of(std::size_t page_index);
+    std::size_t page_bytes() const;
+    /// A row's floats and its counters inside its page (slot = row mod kRowsPerPage).
+    float* floats_at(const Page& page, std::size_t slot) const;
+    std::uint32_t* counters_at(const Page& page, std::size_t slot) const;
 
     int dim_;
     bool with_anchor_;
