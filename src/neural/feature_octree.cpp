@@ -2,7 +2,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <cmath>
@@ -104,12 +103,13 @@ FeatureOctreeConfig validated(const FeatureOctreeConfig& config) {
     return config;
 }
 
-/// Sorts cells lexicographically (x, then y, then z) and removes duplicates. Cells within
-/// +-2^20 of the origin on every axis (200 km at 0.2 m) are sorted as packed 64-bit keys, which is
-/// several times faster than comparing vectors; the order is the same either way.
-void sort_unique_cells(std::vector<Eigen::Vector3i>& cells) {
+/// Removes repeated cells, keeping each cell's first occurrence in place. Cells within +-2^20 of
+/// the origin on every axis (200 km at 0.2 m) go through an open-addressing set of packed 64-bit
+/// keys (`table` is its reused storage); farther ones are sorted instead.
+void remove_repeated_cells(std::vector<Eigen::Vector3i>& cells, std::vector<std::uint64_t>& table) {
     constexpr int kBits = 21;
     constexpr int kBias = 1 << (kBits - 1);
+    constexpr std::uint64_t kEmpty = ~std::uint64_t(0);  // no packed key has the top bit set
     const bool packable = std::all_of(cells.begin(), cells.end(), [&](const Eigen::Vector3i& c) {
         return (c.array() >= -kBias).all() && (c.array() < kBias).all();
     });
@@ -121,21 +121,22 @@ void sort_unique_cells(std::vector<Eigen::Vector3i>& cells) {
         cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
         return;
     }
-    std::vector<std::uint64_t> keys(cells.size());
-    for (std::size_t i = 0; i < cells.size(); ++i) {
-        const Eigen::Vector3i& c = cells[i];
-        keys[i] = (std::uint64_t(c.x() + kBias) << (2 * kBits)) |
-                  (std::uint64_t(c.y() + kBias) << kBits) | std::uint64_t(c.z() + kBias);
+    int bits = 4;
+    while ((std::size_t(1) << bits) < 2 * cells.size()) ++bits;
+    const std::size_t mask = (std::size_t(1) << bits) - 1;
+    table.assign(mask + 1, kEmpty);
+    std::size_t kept = 0;
+    for (const Eigen::Vector3i& c : cells) {
+        const std::uint64_t key = (std::uint64_t(c.x() + kBias) << (2 * kBits)) |
+                                  (std::uint64_t(c.y() + kBias) << kBits) |
+                                  std::uint64_t(c.z() + kBias);
+        std::size_t slot = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> (64 - bits));
+        while (table[slot] != kEmpty && table[slot] != key) slot = (slot + 1) & mask;
+        if (table[slot] == key) continue;
+        table[slot] = key;
+        cells[kept++] = c;
     }
-    tbb::parallel_sort(keys.begin(), keys.end());  // equal keys are alike: one result
-    keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-    constexpr std::uint64_t kMask = (std::uint64_t(1) << kBits) - 1;
-    cells.resize(keys.size());
-    for (std::size_t i = 0; i < keys.size(); ++i) {
-        cells[i] = Eigen::Vector3i(static_cast<int>(keys[i] >> (2 * kBits)) - kBias,
-                                   static_cast<int>((keys[i] >> kBits) & kMask) - kBias,
-                                   static_cast<int>(keys[i] & kMask) - kBias);
-    }
+    cells.resize(kept);
 }
 
 /// Largest multiple of `step` not above `v` (step > 0).
@@ -307,7 +308,9 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
     // combined in block order, so the map does not depend on the thread count.
     constexpr std::size_t kBlock = 4096;
     for (int level = 0; level < config_.num_levels; ++level) {
-        // Collect the distinct cells first so that each corner is visited once per cell.
+        // Each block of points lists its distinct cells, so that each corner is visited about
+        // once per cell (a cell shared by two blocks is visited twice, which changes nothing):
+        // the set of missing corners does not depend on the order in which they are found.
         const double inv = 1.0 / cell_size_m(level);
         const double margin_m = config_.allocation_margin_ratio * config_.leaf_size_m;
         const std::size_t point_blocks = (points_map.size() + kBlock - 1) / kBlock;
@@ -329,43 +332,39 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
                     }
                 }
             }
+            std::vector<std::uint64_t> table;
+            remove_repeated_cells(out, table);
         });
-        std::vector<Eigen::Vector3i> cells;
-        std::size_t num_cells = 0;
-        for (const auto& block : block_cells) num_cells += block.size();
-        cells.reserve(num_cells);
-        for (auto& block : block_cells) {
-            cells.insert(cells.end(), block.begin(), block.end());
-            std::vector<Eigen::Vector3i>().swap(block);
-        }
-        if (cells.empty()) continue;
-        sort_unique_cells(cells);
+        const bool any_cell = std::any_of(block_cells.begin(), block_cells.end(),
+                                          [](const auto& cells) { return !cells.empty(); });
+        if (!any_cell) continue;
 
         LevelIndex& index = impl_->levels[level];
         if (!index.shift_chosen) {
             openvdb::CoordBBox bbox;
-            for (const auto& cell : cells) {
-                bbox.expand(to_coord(cell));
-                bbox.expand(to_coord(cell).offsetBy(1));
+            for (const auto& cells : block_cells) {
+                for (const auto& cell : cells) {
+                    bbox.expand(to_coord(cell));
+                    bbox.expand(to_coord(cell).offsetBy(1));
+                }
             }
             index.shift = choose_index_shift(bbox);
             index.shift_chosen = true;
             index.grid->transform().postTranslate(-index.shift.asVec3d() * cell_size_m(level));
         }
-        // The corners not yet in the grid, found in parallel (the grid is only read), in cell
-        // order; a corner shared by several cells may be listed more than once.
-        const std::size_t cell_blocks = (cells.size() + kBlock - 1) / kBlock;
-        std::vector<std::vector<openvdb::Coord>> missing(cell_blocks);
-        tbb::parallel_for(std::size_t(0), cell_blocks, [&](std::size_t b) {
+        // The corners not yet in the grid, found in parallel (the grid is only read); a corner
+        // shared by several cells may be listed more than once.
+        std::vector<std::vector<openvdb::Coord>> missing(point_blocks);
+        tbb::parallel_for(std::size_t(0), point_blocks, [&](std::size_t b) {
             IndexAccessor reader(index.grid->tree());
-            const std::size_t end = std::min(cells.size(), (b + 1) * kBlock);
-            for (std::size_t i = b * kBlock; i < end; ++i) {
-                const openvdb::Coord origin = to_coord(cells[i]) + index.shift;
+            for (const Eigen::Vector3i& cell : block_cells[b]) {
+                const openvdb::Coord origin = to_coord(cell) + index.shift;
                 for (const auto& offset : kCornerOffset) {
                     const openvdb::Coord ijk = origin.offsetBy(offset[0], offset[1], offset[2]);
                     if (!reader.isValueOn(ijk)) missing[b].push_back(ijk);
                 }
             }
+            std::vector<Eigen::Vector3i>().swap(block_cells[b]);
         });
         auto accessor = index.grid->getAccessor();
         fresh_trees[level] = std::make_unique<IndexTree>(false);
