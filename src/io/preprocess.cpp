@@ -1,11 +1,14 @@
 // Per-scan preprocessing: invalid points, range crop, box crop, voxel downsampling.
 #include "shine/io/preprocess.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <unordered_map>
+#include <utility>
 
 #include "shine/core/error.hpp"
 
@@ -78,99 +81,180 @@ PreprocessStats& PreprocessStats::operator+=(const PreprocessStats& other) {
     return *this;
 }
 
+namespace {
+
+constexpr std::size_t kNone = static_cast<std::size_t>(-1);
+/// Input points per block of the parallel passes.
+constexpr std::size_t kBlockPoints = 16384;
+/// Voxels are split by key hash into this many sets, thinned in parallel.
+constexpr std::size_t kVoxelParts = 4;
+
+/// A kept point and, when downsampling, its voxel and its squared distance to the voxel centre
+/// (in voxel units).
+struct Candidate {
+    preprocess_internal::VoxelKey key;
+    double distance2;
+    Eigen::Vector3f point;
+};
+
+/// One block of the input: its kept points (grouped by voxel part when downsampling), its counts,
+/// and the first point (block-local index) that stops the scan, if any.
+struct Block {
+    std::vector<Eigen::Vector3f> kept;               ///< without downsampling
+    std::vector<Candidate> candidates[kVoxelParts];  ///< with downsampling
+    PreprocessStats stats;
+    std::size_t first_nonfinite = kNone;  ///< input index
+    std::size_t first_too_far = kNone;    ///< index among the block's kept points
+    std::size_t kept_count = 0;
+};
+
+}  // namespace
+
 std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
                                              const PreprocessConfig& config, const fs::path& source,
                                              PreprocessStats* stats) {
     using namespace preprocess_internal;
     validate(config);
-    PreprocessStats s;
-    s.input = points_sensor.size();
-    std::vector<Eigen::Vector3f> kept;
-    kept.reserve(points_sensor.size());
-    for (std::size_t i = 0; i < points_sensor.size(); ++i) {
-        const Eigen::Vector3f& p = points_sensor[i];
-        if (!p.allFinite()) {
-            if (config.invalid_points == InvalidPointPolicy::kError) {
-                char text[160];
-                std::snprintf(text, sizeof(text), "point %zu is (%g, %g, %g)", i,
-                              static_cast<double>(p.x()), static_cast<double>(p.y()),
-                              static_cast<double>(p.z()));
-                throw DataError("scan '" + source.string() + "': " + text +
-                                ", not finite; set 'preprocess.invalid_points: drop' (the "
-                                "default) to skip and count such points");
-            }
-            ++s.dropped_nonfinite;
-            continue;
-        }
-        const Eigen::Vector3d pd = p.cast<double>();
-        const double range_m = pd.norm();
-        if (range_m == 0.0) {
-            ++s.dropped_zero_range;
-            continue;
-        }
-        if (range_m < config.min_range_m || range_m > config.max_range_m) {
-            ++s.dropped_range;
-            continue;
-        }
-        if ((pd.array() < config.box_min_sensor_m.array()).any() ||
-            (pd.array() > config.box_max_sensor_m.array()).any()) {
-            ++s.dropped_box;
-            continue;
-        }
-        kept.push_back(p);
-    }
+    const bool downsample = config.voxel_downsample_m > 0.0;
+    const double v = config.voxel_downsample_m;
+    // Keys must fit in int64; 2^62 voxels leave room for the +1 neighbours of later users.
+    constexpr double kMaxKey = 4.6e18;
+    const VoxelKeyHash hash;
 
-    if (config.voxel_downsample_m > 0.0 && !kept.empty()) {
-        const double v = config.voxel_downsample_m;
-        // Keys must fit in int64; 2^62 voxels leave room for the +1 neighbours of later users.
-        constexpr double kMaxKey = 4.6e18;
-        struct Best {
-            std::size_t index;
-            double distance2;
-        };
-        std::unordered_map<VoxelKey, Best, VoxelKeyHash> voxels;
-        voxels.reserve(kept.size());
-        // A scan lists its points along the beams, so consecutive points often share a voxel:
-        // the previous point's voxel is checked before the table (the map's values do not move).
-        VoxelKey last_key{0, 0, 0};
-        Best* last = nullptr;
-        for (std::size_t i = 0; i < kept.size(); ++i) {
-            const Eigen::Vector3d scaled = kept[i].cast<double>() / v;
+    // 1. Filter, and with downsampling find each point's voxel, in blocks in parallel.
+    const std::size_t num_blocks = (points_sensor.size() + kBlockPoints - 1) / kBlockPoints;
+    std::vector<Block> blocks(num_blocks);
+    tbb::parallel_for(std::size_t(0), num_blocks, [&](std::size_t b) {
+        Block& block = blocks[b];
+        PreprocessStats& s = block.stats;
+        const std::size_t end = std::min(points_sensor.size(), (b + 1) * kBlockPoints);
+        for (std::size_t i = b * kBlockPoints; i < end; ++i) {
+            const Eigen::Vector3f& p = points_sensor[i];
+            if (!p.allFinite()) {
+                if (block.first_nonfinite == kNone) block.first_nonfinite = i;
+                ++s.dropped_nonfinite;
+                continue;
+            }
+            const Eigen::Vector3d pd = p.cast<double>();
+            const double range_m = pd.norm();
+            if (range_m == 0.0) {
+                ++s.dropped_zero_range;
+                continue;
+            }
+            if (range_m < config.min_range_m || range_m > config.max_range_m) {
+                ++s.dropped_range;
+                continue;
+            }
+            if ((pd.array() < config.box_min_sensor_m.array()).any() ||
+                (pd.array() > config.box_max_sensor_m.array()).any()) {
+                ++s.dropped_box;
+                continue;
+            }
+            const std::size_t local = block.kept_count++;
+            if (!downsample) {
+                block.kept.push_back(p);
+                continue;
+            }
+            const Eigen::Vector3d scaled = pd / v;
             const Eigen::Vector3d cell = scaled.array().floor();
             if ((cell.array().abs() > kMaxKey).any()) {
-                throw DataError("scan '" + source.string() + "': point " + std::to_string(i) +
-                                " is too far away for voxel size " + std::to_string(v) +
-                                " m; set a finite max_range_m");
+                if (block.first_too_far == kNone) block.first_too_far = local;
+                continue;
             }
             const VoxelKey key{static_cast<std::int64_t>(cell.x()),
                                static_cast<std::int64_t>(cell.y()),
                                static_cast<std::int64_t>(cell.z())};
             // Distance to the voxel centre in voxel units (same order as in metres).
             const double d2 = (scaled - cell - Eigen::Vector3d::Constant(0.5)).squaredNorm();
-            if (last == nullptr || !(key == last_key)) {
-                auto [it, inserted] = voxels.try_emplace(key, Best{i, d2});
-                last_key = key;
-                last = &it->second;
-                if (inserted) continue;
-            }
-            Best& best = *last;
-            if (d2 < best.distance2 ||
-                (d2 == best.distance2 && lexicographic_less(kept[i], kept[best.index]))) {
-                best = Best{i, d2};
-            }
+            block.candidates[hash(key) % kVoxelParts].push_back({key, d2, p});
         }
+    });
+
+    PreprocessStats s;
+    s.input = points_sensor.size();
+    for (const Block& block : blocks) {
+        if (block.first_nonfinite != kNone && config.invalid_points == InvalidPointPolicy::kError) {
+            const Eigen::Vector3f& p = points_sensor[block.first_nonfinite];
+            char text[160];
+            std::snprintf(text, sizeof(text), "point %zu is (%g, %g, %g)", block.first_nonfinite,
+                          static_cast<double>(p.x()), static_cast<double>(p.y()),
+                          static_cast<double>(p.z()));
+            throw DataError("scan '" + source.string() + "': " + text +
+                            ", not finite; set 'preprocess.invalid_points: drop' (the "
+                            "default) to skip and count such points");
+        }
+        s.dropped_nonfinite += block.stats.dropped_nonfinite;
+        s.dropped_zero_range += block.stats.dropped_zero_range;
+        s.dropped_range += block.stats.dropped_range;
+        s.dropped_box += block.stats.dropped_box;
+    }
+    std::size_t kept_before = 0;  // the error names the point's index among the kept points
+    for (const Block& block : blocks) {
+        if (block.first_too_far != kNone) {
+            throw DataError("scan '" + source.string() + "': point " +
+                            std::to_string(kept_before + block.first_too_far) +
+                            " is too far away for voxel size " + std::to_string(v) +
+                            " m; set a finite max_range_m");
+        }
+        kept_before += block.kept_count;
+    }
+    const std::size_t kept_count = kept_before;
+
+    std::vector<Eigen::Vector3f> kept;
+    if (!downsample) {
+        kept.reserve(kept_count);
+        for (const Block& block : blocks)
+            kept.insert(kept.end(), block.kept.begin(), block.kept.end());
+    } else if (kept_count > 0) {
+        // 2. Per voxel, the point closest to its centre (exact ties: the lexicographically
+        // smaller point), a total order, so neither the input order nor the split into blocks and
+        // parts changes the choice. Each part of the voxels is thinned in parallel, visiting its
+        // points in input order.
+        std::vector<std::pair<VoxelKey, Eigen::Vector3f>> chosen[kVoxelParts];
+        tbb::parallel_for(std::size_t(0), kVoxelParts, [&](std::size_t part) {
+            struct Best {
+                const Candidate* candidate;
+            };
+            std::unordered_map<VoxelKey, Best, VoxelKeyHash> voxels;
+            std::size_t count = 0;
+            for (const Block& block : blocks) count += block.candidates[part].size();
+            voxels.reserve(count);
+            // A scan lists its points along the beams, so consecutive points often share a voxel:
+            // the previous point's voxel is checked before the table (the map's values do not
+            // move).
+            const Candidate* last_key = nullptr;
+            Best* last = nullptr;
+            for (const Block& block : blocks) {
+                for (const Candidate& c : block.candidates[part]) {
+                    if (last == nullptr || !(c.key == last_key->key)) {
+                        auto [it, inserted] = voxels.try_emplace(c.key, Best{&c});
+                        last_key = &c;
+                        last = &it->second;
+                        if (inserted) continue;
+                    }
+                    const Candidate& best = *last->candidate;
+                    if (c.distance2 < best.distance2 || (c.distance2 == best.distance2 &&
+                                                         lexicographic_less(c.point, best.point))) {
+                        last->candidate = &c;
+                    }
+                }
+            }
+            chosen[part].reserve(voxels.size());
+            for (const auto& [key, best] : voxels)
+                chosen[part].emplace_back(key, best.candidate->point);
+        });
         // Output sorted by voxel key: the result is then independent of the input order, not
         // just as a set but element by element.
-        std::vector<std::pair<VoxelKey, std::size_t>> chosen;
-        chosen.reserve(voxels.size());
-        for (const auto& [key, best] : voxels) chosen.emplace_back(key, best.index);
-        std::sort(chosen.begin(), chosen.end(),
+        std::vector<std::pair<VoxelKey, Eigen::Vector3f>> all;
+        std::size_t voxels = 0;
+        for (const auto& part : chosen) voxels += part.size();
+        all.reserve(voxels);
+        for (const auto& part : chosen) all.insert(all.end(), part.begin(), part.end());
+        std::sort(all.begin(), all.end(),
                   [](const auto& a, const auto& b) { return a.first < b.first; });
-        std::vector<Eigen::Vector3f> downsampled;
-        downsampled.reserve(chosen.size());
-        for (const auto& c : chosen) downsampled.push_back(kept[c.second]);
-        s.dropped_downsample = kept.size() - downsampled.size();
-        kept = std::move(downsampled);
+        kept.reserve(all.size());
+        for (const auto& c : all) kept.push_back(c.second);
+        s.dropped_downsample = kept_count - kept.size();
     }
     s.output = kept.size();
     if (stats != nullptr) *stats = s;
