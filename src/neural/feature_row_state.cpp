@@ -1,9 +1,6 @@
 #include "shine/optim/feature_row_state.hpp"
 
 #include <algorithm>
-#include <cstdlib>
-#include <cstring>
-#include <new>
 #include <string>
 
 #include "shine/io/binary_stream.hpp"
@@ -13,7 +10,6 @@ namespace shine {
 namespace {
 constexpr std::size_t kCounters = 3;         ///< per row: step, anchor_scan, master_valid
 constexpr std::size_t kBlockAlignWords = 8;  ///< blocks start on 32-byte boundaries
-constexpr std::size_t kPageAlignBytes = 64;
 
 std::size_t block_words(std::size_t floats_per_row) {
     return (floats_per_row + kCounters + kBlockAlignWords - 1) / kBlockAlignWords *
@@ -24,19 +20,12 @@ std::size_t block_words(std::size_t floats_per_row) {
 /// kRowsPerPage blocks of words_per_row_ 4-byte words: the row's floats, then its counters, then
 /// padding (floats_at / counters_at). The counters share the floats' cache lines: a touched row
 /// costs two cache misses for the state (with 8 features and anchors, one 128-byte block)
-/// instead of three.
+/// instead of three. The storage is the page's stretch of its slab (zeros when first used).
 struct FeatureRowState::Page {
     void* storage;
     std::atomic<std::uint32_t> last_scan{0};
 
-    explicit Page(std::size_t bytes) {
-        storage = std::aligned_alloc(kPageAlignBytes, bytes);
-        if (!storage) throw std::bad_alloc();
-        std::memset(storage, 0, bytes);
-    }
-    ~Page() { std::free(storage); }
-    Page(const Page&) = delete;
-    Page& operator=(const Page&) = delete;
+    explicit Page(void* storage_in) : storage(storage_in) {}
 };
 
 std::size_t FeatureRowState::page_bytes() const {
@@ -56,7 +45,8 @@ FeatureRowState::FeatureRowState(int dim, bool with_anchor, bool with_master)
       with_anchor_(with_anchor),
       with_master_(with_master),
       floats_per_row_(static_cast<std::size_t>(dim) * (2 + with_anchor + with_master)),
-      words_per_row_(block_words(floats_per_row_)) {}
+      words_per_row_(block_words(floats_per_row_)),
+      pages_per_slab_(std::max<std::size_t>(1, HugePageRegion::kHugePageBytes / page_bytes())) {}
 
 FeatureRowState::~FeatureRowState() {
     for (auto& p : pages_) delete p.load();
@@ -68,8 +58,10 @@ FeatureRowState::FeatureRowState(FeatureRowState&& other) noexcept
       with_master_(other.with_master_),
       floats_per_row_(other.floats_per_row_),
       words_per_row_(other.words_per_row_),
+      pages_per_slab_(other.pages_per_slab_),
       num_rows_(other.num_rows_),
-      pages_(std::move(other.pages_)) {
+      pages_(std::move(other.pages_)),
+      slabs_(std::move(other.slabs_)) {
     other.num_rows_ = 0;
 }
 
@@ -81,8 +73,10 @@ FeatureRowState& FeatureRowState::operator=(FeatureRowState&& other) noexcept {
         with_master_ = other.with_master_;
         floats_per_row_ = other.floats_per_row_;
         words_per_row_ = other.words_per_row_;
+        pages_per_slab_ = other.pages_per_slab_;
         num_rows_ = other.num_rows_;
         pages_ = std::move(other.pages_);
+        slabs_ = std::move(other.slabs_);
         other.num_rows_ = 0;
     }
     return *this;
@@ -96,14 +90,31 @@ void FeatureRowState::resize(std::size_t num_rows) {
     std::vector<std::atomic<Page*>> grown(needed);
     for (std::size_t i = 0; i < pages_.size(); ++i) grown[i].store(pages_[i].load());
     pages_ = std::move(grown);
+    // Slabs are mapped here, where nothing runs concurrently; they take memory only where touched.
+    const std::size_t slabs = (needed + pages_per_slab_ - 1) / pages_per_slab_;
+    while (slabs_.size() < slabs) slabs_.emplace_back(pages_per_slab_ * page_bytes());
+}
+
+void* FeatureRowState::page_storage(std::size_t page_index) const {
+    return static_cast<char*>(slabs_[page_index / pages_per_slab_].data()) +
+           page_index % pages_per_slab_ * page_bytes();
+}
+
+void FeatureRowState::drop_page(std::size_t page_index) {
+    Page* page = pages_[page_index].exchange(nullptr);
+    if (!page) return;
+    slabs_[page_index / pages_per_slab_].discard(page_index % pages_per_slab_ * page_bytes(),
+                                                 page_bytes());
+    delete page;
 }
 
 FeatureRowState::Page* FeatureRowState::page_of(std::size_t page_index) {
     Page* page = pages_[page_index].load(std::memory_order_acquire);
     if (page) return page;
-    // First use: whoever installs a page first wins; the others free theirs. The content (zeros)
-    // is the same, so the result does not depend on which thread won.
-    auto fresh = std::make_unique<Page>(page_bytes());
+    // First use: whoever installs a page first wins; the others drop their record of it (the
+    // storage is the same stretch of the slab, still zeros), so the result does not depend on
+    // which thread won.
+    auto fresh = std::make_unique<Page>(page_storage(page_index));
     if (pages_[page_index].compare_exchange_strong(page, fresh.get(), std::memory_order_acq_rel)) {
         return fresh.release();
     }
@@ -131,11 +142,10 @@ FeatureRowState::Row FeatureRowState::touch(std::int32_t row, std::uint32_t scan
 
 std::size_t FeatureRowState::release_unused_pages(std::uint32_t oldest_kept) {
     std::size_t released = 0;
-    for (auto& slot : pages_) {
-        Page* page = slot.load();
+    for (std::size_t i = 0; i < pages_.size(); ++i) {
+        const Page* page = pages_[i].load();
         if (page && page->last_scan.load() < oldest_kept) {
-            slot.store(nullptr);
-            delete page;
+            drop_page(i);
             ++released;
         }
     }
@@ -148,7 +158,8 @@ std::size_t FeatureRowState::resident_pages() const {
 }
 
 std::size_t FeatureRowState::memory_bytes() const {
-    return resident_pages() * page_bytes() + pages_.capacity() * sizeof(std::atomic<Page*>);
+    return resident_pages() * page_bytes() + pages_.capacity() * sizeof(std::atomic<Page*>) +
+           slabs_.capacity() * sizeof(HugePageRegion);
 }
 
 void FeatureRowState::save(BinaryWriter& out) const {
@@ -194,7 +205,7 @@ void FeatureRowState::load(BinaryReader& in) {
     }
     const auto count = in.value<std::uint64_t>("page count");
     if (count > pages_.size()) in.fail("page count", "exceeds the page table");
-    for (auto& p : pages_) delete p.exchange(nullptr);
+    for (std::size_t i = 0; i < pages_.size(); ++i) drop_page(i);
     std::vector<float> floats(kRowsPerPage * floats_per_row_);
     std::vector<std::uint32_t> counters(kRowsPerPage * kCounters);
     for (std::uint64_t k = 0; k < count; ++k) {
@@ -202,7 +213,7 @@ void FeatureRowState::load(BinaryReader& in) {
         if (index >= pages_.size() || pages_[index].load()) {
             in.fail("page index", std::to_string(index) + " is out of range or repeated");
         }
-        auto page = std::make_unique<Page>(page_bytes());
+        auto page = std::make_unique<Page>(page_storage(index));
         page->last_scan.store(in.value<std::uint32_t>("page scan"));
         in.array_into(floats.data(), floats.size(), "page values");
         in.array_into(counters.data(), counters.size(), "page counters");

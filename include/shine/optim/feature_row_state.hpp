@@ -12,8 +12,10 @@
 // kRowsPerPage consecutive rows (rows are appended in scan order, so a page holds one stretch of
 // the drive), allocated when a row of the page is first touched and freed by release_unused_pages()
 // once no row of the page was touched for a while: on a long drive the optimiser's memory follows
-// the active region, not the whole map. A released row starts again from zero moments (and from its
-// rounded value as master copy), as a row does the first time it is trained.
+// the active region, not the whole map. Pages are stretches of slabs, 2 MiB-aligned mappings that
+// may use transparent huge pages (HugePageRegion): rows are read in random order, and with 4 KiB
+// pages nearly every row would also miss the TLB. A released row starts again from zero moments
+// (and from its rounded value as master copy), as a row does the first time it is trained.
 #pragma once
 
 #include <atomic>
@@ -21,6 +23,8 @@
 #include <cstdint>
 #include <memory>
 #include <vector>
+
+#include "shine/core/huge_page_region.hpp"
 
 namespace shine {
 
@@ -70,6 +74,10 @@ class FeatureRowState {
   private:
     struct Page;
     Page* page_of(std::size_t page_index);
+    /// Where page `page_index` lives in its slab.
+    void* page_storage(std::size_t page_index) const;
+    /// Frees the page (if allocated) and hands its memory back; it reads as zeros when reused.
+    void drop_page(std::size_t page_index);
     std::size_t page_bytes() const;
     /// A row's floats and its counters inside its page (slot = row mod kRowsPerPage).
     float* floats_at(const Page& page, std::size_t slot) const;
@@ -80,8 +88,10 @@ class FeatureRowState {
     bool with_master_;
     std::size_t floats_per_row_;
     std::size_t words_per_row_;  ///< a row's block: its floats, its counters, padding
+    std::size_t pages_per_slab_;
     std::size_t num_rows_ = 0;
     std::vector<std::atomic<Page*>> pages_;
+    std::vector<HugePageRegion> slabs_;  ///< slab s holds pages [s, s + 1) * pages_per_slab_
 };
 
 }  // namespace shine
