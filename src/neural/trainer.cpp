@@ -47,7 +47,8 @@ struct Trainer::Chunk {
 };
 
 /// Per row partition: the rows the step touched, in first-touch order, their gradients (compact,
-/// feature_dim floats per touched row) and the regulariser's value.
+/// feature_dim floats per touched row, at the front of a buffer that may be longer) and the
+/// regulariser's value.
 struct Trainer::Partition {
     std::vector<std::int32_t> touched_rows;
     std::vector<float> grads;
@@ -198,8 +199,12 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         std::vector<std::int32_t>& rows = partition.touched_rows;
         std::vector<float>& grads = partition.grads;
         rows.clear();
-        grads.clear();
         partition.regularization = 0.0;
+        // Room for a gradient per record, the most rows the partition can touch; a row's entries
+        // are zeroed when it is first met, so the buffer is only ever grown.
+        std::size_t num_records = 0;
+        for (const Chunk& chunk : chunks_) num_records += chunk.records[p].size();
+        if (grads.size() < num_records * dim) grads.resize(num_records * dim);
         for (const Chunk& chunk : chunks_) {
             const BatchGradient& batch = chunk.batch;
             const std::uint32_t stride = static_cast<std::uint32_t>(batch.corner_stride);
@@ -215,7 +220,7 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
                 if (local < 0) {
                     local = static_cast<std::int32_t>(rows.size());
                     rows.push_back(row);
-                    grads.resize(grads.size() + dim, 0.0f);
+                    std::fill_n(grads.data() + std::size_t(local) * dim, dim, 0.0f);
                 }
                 const float coefficient = batch.coefficients[record] * inv_n;
                 const float* h = batch.h(record / stride);
