@@ -231,22 +231,26 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         // Per touched row: its state block, the regulariser's gradient (Eq. (5), on the rows this
         // iteration used: the set A of Eq. (3)) and the Adam step. Rows are in random order and
         // the loop is bound by cache misses: the blocks of rows a few ahead are requested early.
+        // A row's state is looked up once, when it is requested; ring[j % kAhead] keeps it.
         double regularization = 0.0;
         constexpr std::size_t kAhead = 4;
-        for (std::size_t i = 0; i < rows.size(); ++i) {
-            if (i + kAhead < rows.size()) {
-                const FeatureRowState::Row ahead = row_state_.touch(rows[i + kAhead], scan_);
-                __builtin_prefetch(ahead.first_moment, 1);
-                __builtin_prefetch(ahead.step, 1);
-                if (regularize) {
-                    __builtin_prefetch(ahead.anchor, 1);  // the block's next cache line
-                    regularizer->prefetch_row(rows[i + kAhead]);
-                }
-                if (!half)
-                    __builtin_prefetch(table_floats + std::size_t(rows[i + kAhead]) * dim, 1);
+        FeatureRowState::Row ring[kAhead];
+        const auto request = [&](std::size_t j) {
+            const FeatureRowState::Row ahead = row_state_.touch(rows[j], scan_);
+            __builtin_prefetch(ahead.first_moment, 1);
+            __builtin_prefetch(ahead.step, 1);
+            if (regularize) {
+                __builtin_prefetch(ahead.anchor, 1);  // the block's next cache line
+                regularizer->prefetch_row(rows[j]);
             }
+            if (!half) __builtin_prefetch(table_floats + std::size_t(rows[j]) * dim, 1);
+            ring[j % kAhead] = ahead;
+        };
+        for (std::size_t j = 0; j < std::min(kAhead, rows.size()); ++j) request(j);
+        for (std::size_t i = 0; i < rows.size(); ++i) {
             const std::int32_t row = rows[i];
-            const FeatureRowState::Row state = row_state_.touch(row, scan_);
+            const FeatureRowState::Row state = ring[i % kAhead];
+            if (i + kAhead < rows.size()) request(i + kAhead);
             float* param;
             if (half) {
                 // Mixed precision: Adam steps the float32 master copy, made from the map's value
