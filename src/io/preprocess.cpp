@@ -183,10 +183,7 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
                             ", not finite; set 'preprocess.invalid_points: drop' (the "
                             "default) to skip and count such points");
         }
-        s.dropped_nonfinite += block.stats.dropped_nonfinite;
-        s.dropped_zero_range += block.stats.dropped_zero_range;
-        s.dropped_range += block.stats.dropped_range;
-        s.dropped_box += block.stats.dropped_box;
+        s += block.stats;  // a block counts only its drops
     }
     std::size_t kept_before = 0;  // the error names the point's index among the kept points
     for (const Block& block : blocks) {
@@ -212,36 +209,33 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
         // points in input order.
         std::vector<std::pair<VoxelKey, Eigen::Vector3f>> chosen[kVoxelParts];
         tbb::parallel_for(std::size_t(0), kVoxelParts, [&](std::size_t part) {
-            struct Best {
-                const Candidate* candidate;
-            };
-            std::unordered_map<VoxelKey, Best, VoxelKeyHash> voxels;
+            // Per voxel, its best candidate so far.
+            std::unordered_map<VoxelKey, const Candidate*, VoxelKeyHash> voxels;
             std::size_t count = 0;
             for (const Block& block : blocks) count += block.candidates[part].size();
             voxels.reserve(count);
             // A scan lists its points along the beams, so consecutive points often share a voxel:
             // the previous point's voxel is checked before the table (the map's values do not
             // move).
-            const Candidate* last_key = nullptr;
-            Best* last = nullptr;
+            const VoxelKey* last_key = nullptr;
+            const Candidate** last = nullptr;
             for (const Block& block : blocks) {
                 for (const Candidate& c : block.candidates[part]) {
-                    if (last == nullptr || !(c.key == last_key->key)) {
-                        auto [it, inserted] = voxels.try_emplace(c.key, Best{&c});
-                        last_key = &c;
+                    if (last == nullptr || !(c.key == *last_key)) {
+                        auto [it, inserted] = voxels.try_emplace(c.key, &c);
+                        last_key = &it->first;
                         last = &it->second;
                         if (inserted) continue;
                     }
-                    const Candidate& best = *last->candidate;
+                    const Candidate& best = **last;
                     if (c.distance2 < best.distance2 || (c.distance2 == best.distance2 &&
                                                          lexicographic_less(c.point, best.point))) {
-                        last->candidate = &c;
+                        *last = &c;
                     }
                 }
             }
             chosen[part].reserve(voxels.size());
-            for (const auto& [key, best] : voxels)
-                chosen[part].emplace_back(key, best.candidate->point);
+            for (const auto& [key, best] : voxels) chosen[part].emplace_back(key, best->point);
         });
         // Output sorted by voxel key: the result is then independent of the input order, not
         // just as a set but element by element.
