@@ -105,8 +105,8 @@ FeatureOctreeConfig validated(const FeatureOctreeConfig& config) {
 
 /// Removes repeated cells, keeping each cell's first occurrence in place. Cells within +-2^20 of
 /// the origin on every axis (200 km at 0.2 m) go through an open-addressing set of packed 64-bit
-/// keys (`table` is its reused storage); farther ones are sorted instead.
-void remove_repeated_cells(std::vector<Eigen::Vector3i>& cells, std::vector<std::uint64_t>& table) {
+/// keys; farther ones are sorted instead.
+void remove_repeated_cells(std::vector<Eigen::Vector3i>& cells) {
     constexpr int kBits = 21;
     constexpr int kBias = 1 << (kBits - 1);
     constexpr std::uint64_t kEmpty = ~std::uint64_t(0);  // no packed key has the top bit set
@@ -124,7 +124,7 @@ void remove_repeated_cells(std::vector<Eigen::Vector3i>& cells, std::vector<std:
     int bits = 4;
     while ((std::size_t(1) << bits) < 2 * cells.size()) ++bits;
     const std::size_t mask = (std::size_t(1) << bits) - 1;
-    table.assign(mask + 1, kEmpty);
+    std::vector<std::uint64_t> table(mask + 1, kEmpty);
     std::size_t kept = 0;
     for (const Eigen::Vector3i& c : cells) {
         const std::uint64_t key = (std::uint64_t(c.x() + kBias) << (2 * kBits)) |
@@ -332,8 +332,7 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
                     }
                 }
             }
-            std::vector<std::uint64_t> table;
-            remove_repeated_cells(out, table);
+            remove_repeated_cells(out);
         });
         const bool any_cell = std::any_of(block_cells.begin(), block_cells.end(),
                                           [](const auto& cells) { return !cells.empty(); });
