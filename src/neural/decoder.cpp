@@ -1,5 +1,6 @@
 #include "shine/model/decoder.hpp"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -69,6 +70,55 @@ float Decoder::forward(const float* feature, DecoderWorkspace& ws) const {
         }
     }
     return a[act_offset_[K]];
+}
+
+void Decoder::forward_lanes(const float* features, float* out, DecoderWorkspace& ws) const {
+    // One fixed-size Eigen array per activation: Eigen keeps it in vector registers, and its
+    // element-wise products and sums are forward()'s operations in every lane.
+    using Lanes = Eigen::Array<float, kDecoderLanes, 1>;
+    constexpr int S = kDecoderLanes;
+    const std::size_t values = (act_offset_.back() + dims_.back()) * S;
+    if (ws.lanes.size() != values) ws.lanes.assign(values, 0.0f);
+    float* a = ws.lanes.data();
+    std::copy(features, features + std::size_t(dims_[0]) * S, a);
+    const int K = num_layers();
+    for (int k = 0; k < K; ++k) {
+        const float* W = params_.data() + w_offset_[k];
+        const float* b = params_.data() + b_offset_[k];
+        const float* in = a + act_offset_[k] * S;
+        float* next = a + act_offset_[k + 1] * S;
+        const int n_in = dims_[k], n_out = dims_[k + 1];
+        const bool hidden = k + 1 < K;
+        for (int i = 0; i < n_out; ++i) {
+            const float* row = W + std::size_t(i) * n_in;
+            // forward()'s sum, z += w_ij * a_j in order of j, in every lane.
+            Lanes z = Lanes::Constant(b[i]);
+            for (int j = 0; j < n_in; ++j) z += row[j] * Eigen::Map<const Lanes>(in + j * S);
+            Eigen::Map<Lanes> o(next + std::size_t(i) * S);
+            if (hidden) {
+                o = (z < 0.0f).select(Lanes::Zero(), z);  // std::max(z, 0.0f), -0 and NaN included
+            } else {
+                o = z;
+            }
+        }
+    }
+    std::copy(a + act_offset_[K] * S, a + act_offset_[K] * S + S, out);
+}
+
+DecoderLanes::DecoderLanes(const Decoder& decoder)
+    : decoder_(decoder), features_(std::size_t(decoder.input_dim()) * kDecoderLanes, 0.0f) {}
+
+void DecoderLanes::add(const float* feature) {
+    const int dim = decoder_.input_dim();
+    for (int l = 0; l < dim; ++l) features_[std::size_t(l) * kDecoderLanes + count_] = feature[l];
+    ++count_;
+}
+
+const float* DecoderLanes::evaluate() {
+    // Lanes past size() hold earlier samples' features: evaluated, finite, and ignored.
+    if (count_ > 0) decoder_.forward_lanes(features_.data(), out_, ws_);
+    count_ = 0;
+    return out_;
 }
 
 void Decoder::input_gradient(DecoderWorkspace& ws, float* input_gradient) const {

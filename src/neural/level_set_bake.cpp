@@ -68,11 +68,16 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
         tbb::parallel_for(std::size_t(0), region_blocks, [&](std::size_t b) {
             const std::size_t block = first_block + b;
             CellLookup lookup(sdf.octree);
-            DecoderWorkspace ws;
-            sdf.decoder.prepare(ws);
+            DecoderLanes lanes(sdf.decoder);
+            openvdb::Coord lane_ijk[kDecoderLanes];
             EncodedPoint encoded;
             float feature[kMaxFeatureDim];
             auto& values = block_values[b];
+            const auto emit = [&] {
+                const int n = lanes.size();
+                const float* sdf_m = lanes.evaluate();
+                for (int s = 0; s < n; ++s) values.push_back({lane_ijk[s], sdf_m[s]});
+            };
             const std::size_t end = std::min(cells.size(), (block + 1) * kBlock);
             for (std::size_t c = block * kBlock; c < end; ++c) {
                 int lo[3], hi[3];
@@ -90,12 +95,14 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
                             encode_point(lookup, sdf.octree, p, false, encoded);
                             if (!(encoded.level_mask & mask_bit)) continue;
                             gather_feature(encoded, sdf.octree.features().data(), dim, feature);
-                            values.push_back(
-                                {openvdb::Coord(i, j, k), sdf.decoder.forward(feature, ws)});
+                            lane_ijk[lanes.size()] = openvdb::Coord(i, j, k);
+                            lanes.add(feature);
+                            if (lanes.full()) emit();
                         }
                     }
                 }
             }
+            emit();
         });
         for (const auto& values : block_values) {
             evaluated += values.size();

@@ -26,7 +26,11 @@ struct DecoderWorkspace {
     std::vector<float> activations;  ///< a_0 = F, a_1 ... a_M (post-ReLU)
     std::vector<float> upstream;     ///< u_k = df/dz_k for k = 1..K (u_K = 1)
     std::vector<float> scratch;
+    std::vector<float> lanes;  ///< forward_lanes(): a_0 ... a_K of kDecoderLanes samples
 };
+
+/// Samples that Decoder::forward_lanes() evaluates at once.
+inline constexpr int kDecoderLanes = 8;
 
 /// MLP with a flat parameter vector (weights row-major, then bias, layer by layer).
 class Decoder {
@@ -45,6 +49,12 @@ class Decoder {
 
     /// f(F); keeps activations in `ws` for the calls below.
     float forward(const float* feature, DecoderWorkspace& ws) const;
+
+    /// f of kDecoderLanes samples at once, for evaluation only (bake, queries): feature l of
+    /// lane s at features[l * kDecoderLanes + s], f of lane s into out[s]. Each lane does
+    /// forward()'s arithmetic operation for operation, so its value is forward()'s bit for bit;
+    /// the lanes share vector instructions.
+    void forward_lanes(const float* features, float* out, DecoderWorkspace& ws) const;
 
     /// After forward(): h = df/dF into input_gradient (length L); fills ws.upstream.
     void input_gradient(DecoderWorkspace& ws, float* input_gradient) const;
@@ -71,13 +81,35 @@ class Decoder {
     std::size_t bias_offset(int k) const { return b_offset_[k]; }
 
   private:
-
     DecoderConfig config_;
     std::vector<int> dims_;                ///< n_0 = L, hidden..., 1
     std::vector<std::size_t> w_offset_;    ///< start of W_k in params_
     std::vector<std::size_t> b_offset_;    ///< start of b_k in params_
     std::vector<std::size_t> act_offset_;  ///< start of a_k in the workspace
     std::vector<float> params_;
+};
+
+/// Queues samples' features and evaluates them kDecoderLanes at a time with forward_lanes(): for
+/// loops that evaluate many points (bake, queries). One per thread.
+class DecoderLanes {
+  public:
+    explicit DecoderLanes(const Decoder& decoder);
+
+    /// Samples queued (the lane the next one goes to).
+    int size() const { return count_; }
+    bool full() const { return count_ == kDecoderLanes; }
+    /// Queues F (input_dim values); the queue must not be full.
+    void add(const float* feature);
+    /// f of the queued samples in the order they were added (size() values, valid until the next
+    /// call); empties the queue.
+    const float* evaluate();
+
+  private:
+    const Decoder& decoder_;
+    DecoderWorkspace ws_;
+    std::vector<float> features_;  ///< feature l of lane s at l * kDecoderLanes + s
+    float out_[kDecoderLanes] = {};
+    int count_ = 0;
 };
 
 }  // namespace shine
