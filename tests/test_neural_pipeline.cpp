@@ -187,20 +187,69 @@ TEST(BakeAndMesh, AnalyticPlaneAndSphereWithSubVoxelError) {
     EXPECT_GT(outward, kMinOutwardShare * near_sphere);
 }
 
-TEST(MapperConfig, AutoIterationsGrowForLeavesFinerThanTheDefault) {
+TEST(MapperConfig, AutomaticScheduleTakesLargeStepsAndGrowsForFinerLeaves) {
     MapperConfig config;
     EXPECT_EQ(config.iterations, -1);
-    EXPECT_EQ(config.batch_iterations(), 2400);  // default 0.2 m leaf
+    EXPECT_EQ(config.trainer.batch_size, 0);  // automatic
+    BatchSchedule s = config.batch_schedule();
+    EXPECT_EQ(s.batch_size, 32768);
+    EXPECT_FLOAT_EQ(s.learning_rate, 0.03f);
+    EXPECT_EQ(s.iterations, 250);  // default 0.2 m leaf
+    EXPECT_EQ(config.batch_iterations(), 250);
+    const TrainerConfig trainer = config.batch_trainer();
+    EXPECT_EQ(trainer.batch_size, 32768);
+    EXPECT_FLOAT_EQ(trainer.feature_adam.learning_rate, 0.03f);
+    const std::pair<double, int> steps_by_leaf[] = {{0.1, 707}, {0.3, 375}, {0.4, 500},
+                                                    {0.5, 500}, {1.0, 500}, {0.001, 6250}};
+    for (const auto& [leaf_m, steps] : steps_by_leaf) {
+        config.octree.leaf_size_m = leaf_m;
+        EXPECT_EQ(config.batch_iterations(), steps) << leaf_m << " m";
+    }
+    // A learning rate that is set is kept.
+    config.octree.leaf_size_m = 0.2;
+    config.trainer.feature_adam.learning_rate = 0.02f;
+    EXPECT_FLOAT_EQ(config.batch_schedule().learning_rate, 0.02f);
+    EXPECT_EQ(config.batch_schedule().batch_size, 32768);
+}
+
+TEST(MapperConfig, SettingStepsOrBatchSizeKeepsThePapersSteps) {
+    MapperConfig config;
+    config.iterations = 1500;  // steps set: 4096 samples at lr 0.01 unless those are set too
+    BatchSchedule s = config.batch_schedule();
+    EXPECT_EQ(s.batch_size, 4096);
+    EXPECT_FLOAT_EQ(s.learning_rate, 0.01f);
+    EXPECT_EQ(s.iterations, 1500);
+    config.iterations = 0;  // explicit values are kept, 0 included
+    EXPECT_EQ(config.batch_iterations(), 0);
+
+    config.iterations = -1;
+    config.trainer.batch_size = 2048;  // batch set: the paper's automatic steps
+    s = config.batch_schedule();
+    EXPECT_EQ(s.batch_size, 2048);
+    EXPECT_FLOAT_EQ(s.learning_rate, 0.01f);
+    EXPECT_EQ(s.iterations, 2400);  // default 0.2 m leaf
     config.octree.leaf_size_m = 0.1;
     EXPECT_EQ(config.batch_iterations(), 6788);
     config.octree.leaf_size_m = 1.0;
     EXPECT_EQ(config.batch_iterations(), 2400);  // coarse maps keep the default
     config.octree.leaf_size_m = 0.001;
     EXPECT_EQ(config.batch_iterations(), 50000);  // clamped
-    config.iterations = 0;                        // explicit values are kept, 0 included
-    EXPECT_EQ(config.batch_iterations(), 0);
-    // The YAML form accepts -1 (auto) and rejects anything below.
-    parse_config_yaml("training:\n  iterations: -1\n", "test", config);
+    EXPECT_EQ(config.batch_trainer().batch_size, 2048);
+
+    // The YAML form: 0 is automatic for the batch size and the learning rate, -1 for the steps;
+    // anything below is rejected, and the defaults read back as automatic.
+    parse_config_yaml("training:\n  iterations: -1\n  batch_size: 0\n  learning_rate: 0\n", "test",
+                      config);
     EXPECT_EQ(config.iterations, -1);
+    EXPECT_EQ(config.trainer.batch_size, 0);
+    EXPECT_EQ(config.trainer.feature_adam.learning_rate, 0.0f);
     EXPECT_THROW(parse_config_yaml("training:\n  iterations: -2\n", "test", config), ConfigError);
+    EXPECT_THROW(parse_config_yaml("training:\n  batch_size: -1\n", "test", config), ConfigError);
+    EXPECT_THROW(parse_config_yaml("training:\n  learning_rate: -0.01\n", "test", config),
+                 ConfigError);
+    MapperConfig read_back;
+    read_back.trainer.batch_size = 77;
+    parse_config_yaml(config_to_yaml(MapperConfig{}), "defaults", read_back);
+    EXPECT_EQ(read_back.trainer.batch_size, 0);
+    EXPECT_EQ(read_back.batch_schedule().batch_size, 32768);
 }

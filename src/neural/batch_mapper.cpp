@@ -59,10 +59,11 @@ bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
     normals_done_ = true;
     stats_.normals_seconds += seconds_since(start);
     start = std::chrono::steady_clock::now();
-    if (!trainer_) trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
+    if (!trainer_)
+        trainer_ = std::make_unique<Trainer>(*sdf_, config_.batch_trainer(), config_.sampling);
     Trainer& trainer = *trainer_;
     trainer.reset_seconds();
-    const float lr0 = config_.trainer.feature_adam.learning_rate;
+    const float lr0 = config_.batch_schedule().learning_rate;
     const float dlr0 = config_.trainer.decoder_adam.learning_rate;
     const int iterations = config_.batch_iterations();
     bool stopped = false;
@@ -124,7 +125,7 @@ void BatchMapper::load_state(BinaryReader& in) {
     const auto bce_average = in.value<double>("running BCE");
     load_sdf_parameters(in, *sdf_);
     if (in.value<std::uint8_t>("trainer flag")) {
-        trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
+        trainer_ = std::make_unique<Trainer>(*sdf_, config_.batch_trainer(), config_.sampling);
         trainer_->load_state(in);
     } else {
         trainer_.reset();

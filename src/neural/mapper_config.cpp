@@ -171,10 +171,10 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"normal_radius_m", number(c.normals.max_radius_m, 1e-3, 100.0)}}},
         {"training",
          {{"iterations", number(c.iterations, -1, 10000000)},
-          {"batch_size", number(c.trainer.batch_size, 1, 1 << 22)},
+          {"batch_size", number(c.trainer.batch_size, 0, 1 << 22)},
           {"sigma_m", number(c.trainer.sigma_m, 1e-4, 10.0)},
           {"eikonal_weight", number(c.trainer.eikonal_weight, 0.0, 100.0)},
-          {"learning_rate", number(c.trainer.feature_adam.learning_rate, 1e-7, 10.0)},
+          {"learning_rate", number(c.trainer.feature_adam.learning_rate, 0.0, 10.0)},
           {"decoder_learning_rate", number(c.trainer.decoder_adam.learning_rate, 1e-7, 10.0)},
           {"final_learning_rate_ratio", number(c.final_learning_rate_ratio, 0.0, 1.0)},
           {"train_decoder", boolean(c.trainer.train_decoder)}}},
@@ -211,10 +211,48 @@ PreprocessConfig mapper_preprocess_defaults() {
     return config;
 }
 
-int MapperConfig::batch_iterations() const {
-    if (iterations >= 0) return iterations;
-    const double scaled = 2400.0 * std::pow(0.2 / octree.leaf_size_m, 1.5);
-    return static_cast<int>(std::lround(std::clamp(scaled, 2400.0, 50000.0)));
+TrainerConfig mapper_trainer_defaults() {
+    TrainerConfig config;
+    config.batch_size = 0;
+    config.feature_adam.learning_rate = 0.0f;
+    return config;
+}
+
+MapperConfig::MapperConfig() : trainer(mapper_trainer_defaults()) {}
+
+BatchSchedule MapperConfig::batch_schedule() const {
+    // The automatic schedule and the paper's, measured on the street (docs/performance.md).
+    constexpr int kAutoBatchSize = 32768, kPaperBatchSize = 4096;
+    constexpr float kAutoLearningRate = 0.03f, kPaperLearningRate = 0.01f;
+    const bool automatic = iterations < 0 && trainer.batch_size == 0;
+    const double leaf_m = octree.leaf_size_m;
+    BatchSchedule schedule;
+    schedule.batch_size = trainer.batch_size > 0 ? trainer.batch_size
+                          : automatic            ? kAutoBatchSize
+                                                 : kPaperBatchSize;
+    schedule.learning_rate = trainer.feature_adam.learning_rate > 0.0f
+                                 ? trainer.feature_adam.learning_rate
+                             : automatic ? kAutoLearningRate
+                                         : kPaperLearningRate;
+    if (iterations >= 0) {
+        schedule.iterations = iterations;
+    } else if (automatic) {
+        const double finer = std::pow(0.2 / leaf_m, 1.5), coarser = std::min(leaf_m / 0.2, 2.0);
+        schedule.iterations =
+            static_cast<int>(std::lround(std::min(250.0 * std::max(finer, coarser), 6250.0)));
+    } else {
+        const double scaled = 2400.0 * std::pow(0.2 / leaf_m, 1.5);
+        schedule.iterations = static_cast<int>(std::lround(std::clamp(scaled, 2400.0, 50000.0)));
+    }
+    return schedule;
+}
+
+TrainerConfig MapperConfig::batch_trainer() const {
+    const BatchSchedule schedule = batch_schedule();
+    TrainerConfig config = trainer;
+    config.batch_size = schedule.batch_size;
+    config.feature_adam.learning_rate = schedule.learning_rate;
+    return config;
 }
 
 void MapperConfig::finalize() {
