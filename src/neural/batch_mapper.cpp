@@ -63,9 +63,10 @@ bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
         trainer_ = std::make_unique<Trainer>(*sdf_, config_.batch_trainer(), config_.sampling);
     Trainer& trainer = *trainer_;
     trainer.reset_seconds();
-    const float lr0 = config_.batch_schedule().learning_rate;
+    const BatchSchedule schedule = config_.batch_schedule();
+    const float lr0 = schedule.learning_rate;
     const float dlr0 = config_.trainer.decoder_adam.learning_rate;
-    const int iterations = config_.batch_iterations();
+    const int iterations = schedule.iterations;
     bool stopped = false;
     while (iterations_done_ < iterations) {
         const int it = iterations_done_;

@@ -115,7 +115,7 @@ void DecoderLanes::add(const float* feature) {
 }
 
 const float* DecoderLanes::evaluate() {
-    // Lanes past size() hold earlier samples' features: evaluated, finite, and ignored.
+    // Lanes past size() hold earlier samples' features (or zeros): evaluated and ignored.
     if (count_ > 0) decoder_.forward_lanes(features_.data(), out_, ws_);
     count_ = 0;
     return out_;

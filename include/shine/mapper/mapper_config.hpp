@@ -21,10 +21,6 @@ namespace shine {
 /// PreprocessConfig's defaults with the mapper's voxel size (MapperConfig::preprocess).
 PreprocessConfig mapper_preprocess_defaults();
 
-/// TrainerConfig's defaults with batch mode's samples per step and feature learning rate left
-/// automatic (0), for MapperConfig::batch_schedule() to choose.
-TrainerConfig mapper_trainer_defaults();
-
 /// What batch mode trains with (MapperConfig::batch_schedule()).
 struct BatchSchedule {
     int batch_size = 0;          ///< samples per step
@@ -33,6 +29,8 @@ struct BatchSchedule {
 };
 
 struct MapperConfig {
+    /// The defaults below, with batch mode's samples per step and feature learning rate left
+    /// automatic (0) for batch_schedule() to choose.
     MapperConfig();
 
     /// The scans' preprocessing, with one point kept per 0.2 m voxel (PreprocessConfig's own
