@@ -9,9 +9,9 @@
 #include "shine/bake/level_set_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/io/ply.hpp"
-#include "shine/map/map_file.hpp"
 #include "shine/mapper/mapper_config.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace shine::cli {
 namespace {

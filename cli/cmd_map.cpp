@@ -18,10 +18,10 @@
 #include "shine/eval/metrics_report.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/scan_sequence.hpp"
-#include "shine/map/map_file.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace shine::cli {
 namespace {

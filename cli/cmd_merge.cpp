@@ -18,10 +18,10 @@
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
 #include "shine/io/ply.hpp"
-#include "shine/map/map_file.hpp"
-#include "shine/map/map_merge.hpp"
+#include "shine/mapper/map_merge.hpp"
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace shine::cli {
 namespace {

@@ -1,6 +1,6 @@
 #include "product_stats.hpp"
 
-#include "shine/map/map_file.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace shine::cli {
 

@@ -13,7 +13,7 @@
 #include "fuzz_common.hpp"
 #include "shine/bake/level_set_file.hpp"
 #include "shine/io/vdb_file_check.hpp"
-#include "shine/map/map_file.hpp"
+#include "shine/model/map_file.hpp"
 
 // OpenVDB trusts the compressed sizes inside voxel data and allocates what they say (up to
 // 2^63 bytes). In a release build such a request throws std::bad_alloc, which the loaders report

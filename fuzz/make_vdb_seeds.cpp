@@ -7,7 +7,7 @@
 #include <filesystem>
 
 #include "shine/bake/level_set_file.hpp"
-#include "shine/map/map_file.hpp"
+#include "shine/model/map_file.hpp"
 
 int main(int argc, char** argv) {
     if (argc != 2) {

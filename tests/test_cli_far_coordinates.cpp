@@ -14,7 +14,7 @@
 #include "cli_test_support.hpp"
 #include "shine/bake/level_set_file.hpp"
 #include "shine/io/ply.hpp"
-#include "shine/map/map_file.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace shine::cli_test;

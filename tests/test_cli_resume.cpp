@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "cli_test_support.hpp"
-#include "shine/map/map_file.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace shine::cli_test;

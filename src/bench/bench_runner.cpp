@@ -11,9 +11,9 @@
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/ply.hpp"
-#include "shine/map/map_file.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/map_sequence.hpp"
+#include "shine/model/map_file.hpp"
 #include "shine/tsdf/tsdf_file.hpp"
 
 namespace shine {

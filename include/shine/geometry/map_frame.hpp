@@ -5,7 +5,6 @@
 #pragma once
 
 #include <Eigen/Geometry>
-#include <algorithm>
 #include <cstddef>
 #include <vector>
 
@@ -13,56 +12,25 @@ namespace shine {
 
 /// The map frame's origin in the world for the first scan's sensor position: that position
 /// rounded to whole kilometres.
-inline Eigen::Vector3d map_origin_world_m(const Eigen::Vector3d& first_sensor_world_m) {
-    return (first_sensor_world_m / 1000.0).array().round().matrix() * 1000.0;
-}
+Eigen::Vector3d map_origin_world_m(const Eigen::Vector3d& first_sensor_world_m);
 
 /// The sensor-to-map transform of a sensor-to-world pose.
-inline Eigen::Isometry3d map_from_sensor(const Eigen::Isometry3d& T_world_sensor,
-                                         const Eigen::Vector3d& origin_world_m) {
-    Eigen::Isometry3d T_map_sensor = T_world_sensor;
-    T_map_sensor.translation() -= origin_world_m;
-    return T_map_sensor;
-}
+Eigen::Isometry3d map_from_sensor(const Eigen::Isometry3d& T_world_sensor,
+                                  const Eigen::Vector3d& origin_world_m);
 
 /// Sensor-frame points in the map frame, transformed in double and rounded to float.
-inline std::vector<Eigen::Vector3f> points_in_map_frame(
-    const std::vector<Eigen::Vector3f>& points_sensor, const Eigen::Isometry3d& T_map_sensor) {
-    std::vector<Eigen::Vector3f> points_map;
-    points_map.reserve(points_sensor.size());
-    for (const auto& p : points_sensor) {
-        points_map.push_back((T_map_sensor * p.cast<double>()).cast<float>());
-    }
-    return points_map;
-}
+std::vector<Eigen::Vector3f> points_in_map_frame(const std::vector<Eigen::Vector3f>& points_sensor,
+                                                 const Eigen::Isometry3d& T_map_sensor);
 
 /// The map origin a run uses: `configured` ([E, N, U] m) when it has three values, else
 /// map_origin_world_m() of the first scan's position.
-inline Eigen::Vector3d choose_map_origin_world_m(const std::vector<double>& configured,
-                                                 const Eigen::Vector3d& first_sensor_world_m) {
-    if (configured.size() == 3) return Eigen::Vector3d(configured[0], configured[1], configured[2]);
-    return map_origin_world_m(first_sensor_world_m);
-}
+Eigen::Vector3d choose_map_origin_world_m(const std::vector<double>& configured,
+                                          const Eigen::Vector3d& first_sensor_world_m);
 
 /// Removes the map-frame points outside the world box `box_world_m` ([xmin, ymin, zmin, xmax,
 /// ymax, zmax]; empty: keeps all) and returns how many were removed.
-inline std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
-                                     const std::vector<double>& box_world_m,
-                                     const Eigen::Vector3d& origin_world_m) {
-    if (box_world_m.size() != 6) return 0;
-    const Eigen::Vector3d lo =
-        Eigen::Vector3d(box_world_m[0], box_world_m[1], box_world_m[2]) - origin_world_m;
-    const Eigen::Vector3d hi =
-        Eigen::Vector3d(box_world_m[3], box_world_m[4], box_world_m[5]) - origin_world_m;
-    const std::size_t before = points_map.size();
-    points_map.erase(std::remove_if(points_map.begin(), points_map.end(),
-                                    [&](const Eigen::Vector3f& p) {
-                                        const Eigen::Vector3d q = p.cast<double>();
-                                        return (q.array() < lo.array()).any() ||
-                                               (q.array() >= hi.array()).any();
-                                    }),
-                     points_map.end());
-    return before - points_map.size();
-}
+std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
+                              const std::vector<double>& box_world_m,
+                              const Eigen::Vector3d& origin_world_m);
 
 }  // namespace shine

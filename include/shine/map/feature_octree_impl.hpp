@@ -1,5 +1,5 @@
-// OpenVDB internals of FeatureOctree, shared only by the map module's own sources (octree,
-// serialisation). Nothing outside src/neural includes this header.
+// OpenVDB internals of FeatureOctree, shared only by the sources that (de)serialise its grids: the
+// octree itself, the map file (src/model) and the tile merge (src/mapper).
 //
 // Each level is a topology-only OpenVDB grid (ValueMask voxels) whose active voxels are the
 // level's corners, plus one int32 per corner: the corner's feature row. Rows are not stored per

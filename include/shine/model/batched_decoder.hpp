@@ -2,7 +2,7 @@
 // h = df/dF and parameter gradients as Decoder's per-sample calls, written as matrix products over
 // the batch (one column per sample) so that Eigen's blocked products do the work instead of one
 // matrix-vector product per sample. Equal to the per-sample calls up to float rounding
-// (tests/test_neural_batched_decoder.cpp).
+// (tests/test_model_batched_decoder.cpp).
 //
 // With A_0 = X (L x B, the batch's features), for the K weight layers
 //   A_{k+1} = relu(W_k A_k + b_k)        (no ReLU on the output, f = A_K, 1 x B)

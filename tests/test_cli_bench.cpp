@@ -11,7 +11,7 @@
 #include "cli_test_support.hpp"
 #include "shine/bench/bench_report.hpp"
 #include "shine/bench/bench_runner.hpp"
-#include "shine/map/map_file.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace shine::cli_test;

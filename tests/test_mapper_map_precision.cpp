@@ -13,9 +13,9 @@
 #include <sstream>
 
 #include "shine/core/error.hpp"
-#include "shine/map/map_file.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/model/map_file.hpp"
 
 using namespace shine;
 namespace fs = std::filesystem;

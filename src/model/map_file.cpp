@@ -1,4 +1,4 @@
-#include "shine/map/map_file.hpp"
+#include "shine/model/map_file.hpp"
 
 #include <openvdb/io/File.h>
 

@@ -12,8 +12,8 @@
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/ply.hpp"
-#include "shine/map/map_file.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace shine {
 namespace fs = std::filesystem;

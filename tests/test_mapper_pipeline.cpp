@@ -10,9 +10,9 @@
 #include "shine/bake/level_set_bake.hpp"
 #include "shine/bake/level_set_file.hpp"
 #include "shine/core/error.hpp"
-#include "shine/map/map_file.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
+#include "shine/model/map_file.hpp"
 
 using namespace shine;
 namespace fs = std::filesystem;

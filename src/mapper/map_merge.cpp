@@ -1,4 +1,4 @@
-#include "shine/map/map_merge.hpp"
+#include "shine/mapper/map_merge.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -13,7 +13,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/map/feature_octree_impl.hpp"
-#include "shine/map/map_file.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace shine {
 namespace {
