@@ -2,7 +2,7 @@
 // lambda_r sum Omega_i |theta_i - theta*_i|^2 and the importance update
 // Omega_i = min(Omega_i + sum_k |dL_bce/dtheta_i|, Omega_m) (paper Eqs. (3)-(5)) checked by finite
 // differences, the trainer's hook, the decoder file, and the mapper's determinism. The forgetting
-// scene is in test_neural_incremental_forgetting.cpp.
+// scene is in test_mapper_incremental_forgetting.cpp.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -21,7 +21,7 @@
 using namespace shine;
 
 namespace {
-// Central differences of float32 kernels whose values are O(1) (as test_neural_gradients.cpp).
+// Central differences of float32 kernels whose values are O(1) (as test_model_gradients.cpp).
 constexpr double kStep = 1e-3;
 constexpr double kRelTol = 2e-2;
 constexpr double kAbsTol = 2e-4;
@@ -39,6 +39,25 @@ std::vector<float> random_table(std::size_t n, float stddev, unsigned seed) {
 }
 }  // namespace
 
+/// lambda_r * L_r of Eq. (3) over the rows `used` of a parameter table and its anchors, in
+/// double: the slow reference the trainer's per-row form is checked against.
+double regularizer_reference(const ImportanceWeights& weights, const std::vector<float>& params,
+                             const std::vector<float>& anchors,
+                             const std::vector<std::int32_t>& used) {
+    const int dim = weights.row_dim();
+    double sum = 0.0;
+    for (const std::int32_t row : used) {
+        double squared = 0.0;
+        for (int l = 0; l < dim; ++l) {
+            const std::size_t i = std::size_t(row) * dim + l;
+            const double d = double(params[i]) - double(anchors[i]);
+            squared += d * d;
+        }
+        sum += weights.importance(row) * squared;
+    }
+    return weights.config().regularization_weight * sum;
+}
+
 TEST(ImportanceWeights, RegularizerGradientMatchesFiniteDifferences) {
     const int dim = 8;
     const std::size_t num_rows = 6;
@@ -47,24 +66,32 @@ TEST(ImportanceWeights, RegularizerGradientMatchesFiniteDifferences) {
     std::vector<float> params = random_table(num_rows * dim, 0.3f, 1);
     const std::vector<float> anchors = params;  // theta*: the values before the drift
     // Omega: row 1 stays 0 (unconstrained), the others differ; then the parameters move away.
-    weights.update_importance({0.7f, 0.0f, 3.0f, 1.5f, 9.0f, 0.2f});
+    weights.update_importance_rows({0, 1, 2, 3, 4, 5}, {0.7f, 0.0f, 3.0f, 1.5f, 9.0f, 0.2f}, 1.0f);
     const std::vector<float> drift = random_table(num_rows * dim, 0.2f, 2);
     for (std::size_t i = 0; i < params.size(); ++i) params[i] += drift[i];
 
-    // The set A of Eq. (3): rows 0, 1, 2, 3, 5 are used this iteration, row 4 is not.
+    // The set A of Eq. (3): rows 0, 1, 2, 3, 5 are used this iteration, row 4 is not; the
+    // trainer adds each used row's gradient and sums the returned values times lambda_r.
     const std::vector<std::int32_t> used = {0, 1, 2, 3, 5};
     std::vector<float> grads(params.size(), 0.0f);
-    const double value = weights.add_gradient(params.data(), anchors.data(), grads.data(), used);
-    EXPECT_NEAR(value, weights.value(params.data(), anchors.data(), used), 1e-6 * value);
+    double value = 0.0;
+    for (const std::int32_t row : used) {
+        const std::size_t base = std::size_t(row) * dim;
+        value += weights.add_row_gradient(row, params.data() + base, anchors.data() + base,
+                                          grads.data() + base);
+    }
+    value *= weights.config().regularization_weight;
+    const double reference = regularizer_reference(weights, params, anchors, used);
+    EXPECT_NEAR(value, reference, 1e-6 * reference);
     EXPECT_GT(value, 0.1);
 
     int nonzero = 0;
     for (std::size_t i = 0; i < params.size(); ++i) {
         const float saved = params[i];
         params[i] = saved + static_cast<float>(kStep);
-        const double vp = weights.value(params.data(), anchors.data(), used);
+        const double vp = regularizer_reference(weights, params, anchors, used);
         params[i] = saved - static_cast<float>(kStep);
-        const double vm = weights.value(params.data(), anchors.data(), used);
+        const double vm = regularizer_reference(weights, params, anchors, used);
         params[i] = saved;
         const double numeric = (vp - vm) / (2.0 * kStep);
         expect_close(grads[i], numeric, "parameter " + std::to_string(i));
@@ -77,24 +104,25 @@ TEST(ImportanceWeights, RegularizerGradientMatchesFiniteDifferences) {
     }
 }
 
-TEST(ImportanceWeights, UpdateAccumulatesAndCapsAtOmegaMax) {
+TEST(ImportanceWeights, UpdateAccumulatesScaledSumsAndCapsAtOmegaMax) {
     ImportanceWeights weights(ImportanceConfig{1.0f, 10.0f}, 2);
     weights.resize(3);
-    weights.update_importance({4.0f, 0.0f, 12.0f});
+    weights.update_importance_rows({0, 2}, {8.0f, 24.0f}, 0.5f);
     EXPECT_EQ(weights.importance(0), 4.0f);
-    EXPECT_EQ(weights.importance(1), 0.0f);
+    EXPECT_EQ(weights.importance(1), 0.0f);   // not reached: unchanged
     EXPECT_EQ(weights.importance(2), 10.0f);  // capped at Omega_m
-    weights.update_importance({5.0f, 1.0f});  // rows beyond the sums stay as they are
+    weights.update_importance_rows({1, 0}, {1.0f, 5.0f}, 1.0f);
     EXPECT_EQ(weights.importance(0), 9.0f);
     EXPECT_EQ(weights.importance(1), 1.0f);
     EXPECT_EQ(weights.importance(2), 10.0f);
-    weights.update_importance({5.0f});
+    weights.update_importance_rows({0}, {5.0f}, 1.0f);
     EXPECT_EQ(weights.importance(0), 10.0f);
     weights.resize(5);  // new rows start unconstrained
     EXPECT_EQ(weights.importance(4), 0.0f);
-    EXPECT_THROW(weights.update_importance({-1.0f}), DataError);
-    EXPECT_THROW(weights.update_importance({NAN}), DataError);
-    EXPECT_THROW(weights.update_importance(std::vector<float>(6, 0.0f)), DataError);
+    EXPECT_THROW(weights.update_importance_rows({0}, {-1.0f}, 1.0f), DataError);
+    EXPECT_THROW(weights.update_importance_rows({0}, {NAN}, 1.0f), DataError);
+    EXPECT_THROW(weights.update_importance_rows({5}, {1.0f}, 1.0f), DataError);  // no row 5
+    EXPECT_THROW(weights.update_importance_rows({0, 1}, {1.0f}, 1.0f), DataError);
     EXPECT_THROW(ImportanceWeights(ImportanceConfig{-1.0f, 10.0f}, 2), ConfigError);
     EXPECT_THROW(ImportanceWeights(ImportanceConfig{1.0f, 0.0f}, 2), ConfigError);
 }
@@ -232,7 +260,9 @@ TEST(IncrementalTrainer, RegularizerHookPullsTowardsAnchorsAndIsANoOpWithoutImpo
     none.resize(rows);  // Omega = 0 everywhere: L_r = 0
     ImportanceWeights strong(ImportanceConfig{1.0f, 1e4f}, dim);
     strong.resize(rows);
-    strong.update_importance(std::vector<float>(rows, 100.0f));
+    std::vector<std::int32_t> all_rows(rows);
+    for (std::size_t r = 0; r < rows; ++r) all_rows[r] = static_cast<std::int32_t>(r);
+    strong.update_importance_rows(all_rows, std::vector<float>(rows, 100.0f), 1.0f);
     // One scan: every row's anchor is its value when the scan first touches it, the initial one.
     for (Trainer* t : {&t_zero, &t_reg}) {
         t->enable_anchors();

@@ -135,20 +135,22 @@ TEST(TrainerParallel, TrainingLowersTheLoss) {
     EXPECT_GT(trainer.seconds().sample, 0.0);
 }
 
-TEST(RowAdam, VectorisedRowsEqualTheScalarUpdate) {
+TEST(Adam, VectorisedRowsAndTheDenseStepEqualTheScalarUpdate) {
+    // adam_update_row() (SSE) on rows visited in random order, as the trainer does, and
+    // DenseAdam::step() on the whole table, against adam_update() one parameter at a time.
     constexpr int kDim = 8;
     constexpr std::size_t kRows = 50;
     std::mt19937 rng(4);
     std::normal_distribution<float> normal(0.0f, 1.0f);
     std::vector<float> params(kRows * kDim), grads(kRows * kDim);
     for (float& p : params) p = normal(rng);
-    std::vector<float> listed_params = params, dense_params = params;
+    std::vector<float> row_params = params, dense_params = params, dense_reference = params;
     std::vector<float> m(kRows * kDim, 0.0f), v(kRows * kDim, 0.0f);
+    std::vector<float> row_m = m, row_v = v, dense_m = m, dense_v = v;
     std::vector<std::uint32_t> steps(kRows, 0);
     const AdamConfig config;
-    RowAdam dense(config, kDim), listed(config, kDim);
-    dense.resize(kRows);
-    listed.resize(kRows);
+    AdamSchedule schedule(config);
+    DenseAdam dense(config, static_cast<int>(kRows * kDim));
     for (int step = 0; step < 5; ++step) {
         for (float& g : grads) g = normal(rng);
         std::vector<std::int32_t> rows;
@@ -156,21 +158,28 @@ TEST(RowAdam, VectorisedRowsEqualTheScalarUpdate) {
             if ((r + step) % 3) rows.push_back(std::int32_t(r));
         }
         std::shuffle(rows.begin(), rows.end(), rng);
-        std::vector<float> row_grads;
         for (const std::int32_t r : rows) {
-            row_grads.insert(row_grads.end(), grads.begin() + r * kDim,
-                             grads.begin() + (r + 1) * kDim);
             const AdamBiasCorrection bias(config, ++steps[r]);
             for (int l = 0; l < kDim; ++l) {
                 const std::size_t i = std::size_t(r) * kDim + l;
                 adam_update(params[i], m[i], v[i], grads[i], config, bias);
             }
+            schedule.reserve_steps(steps[r]);
+            const std::size_t base = std::size_t(r) * kDim;
+            adam_update_row(row_params.data() + base, grads.data() + base, row_m.data() + base,
+                            row_v.data() + base, kDim, config, schedule.reserved_bias(steps[r]));
         }
-        dense.step_rows(dense_params.data(), grads.data(), rows);
-        listed.step_listed_rows(listed_params.data(), row_grads.data(), rows);
+        const AdamBiasCorrection dense_bias(config, static_cast<std::uint32_t>(step + 1));
+        for (std::size_t i = 0; i < dense_reference.size(); ++i) {
+            adam_update(dense_reference[i], dense_m[i], dense_v[i], grads[i], config, dense_bias);
+        }
+        dense.step(dense_params.data(), grads.data());
     }
-    EXPECT_EQ(dense_params, params);
-    EXPECT_EQ(listed_params, params);
+    EXPECT_EQ(row_params, params);
+    EXPECT_EQ(row_m, m);
+    EXPECT_EQ(row_v, v);
+    EXPECT_EQ(dense.steps(), 5u);
+    EXPECT_EQ(dense_params, dense_reference);
 }
 
 TEST(StageProfile, MediansTotalsAndTable) {

@@ -1,4 +1,4 @@
-// Decoder::forward_lanes and DecoderLanes (the evaluation path of the bake and of map queries)
+// Decoder::forward_lanes, DecoderLanes and DecoderLaneQueue (the evaluation path of the bake and of map queries)
 // against Decoder::forward: the same value bit for bit, lane by lane, in the queue's order.
 #include <gtest/gtest.h>
 
@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "shine/model/decoder.hpp"
+#include "shine/model/decoder_lanes.hpp"
 
 using namespace shine;
 
@@ -101,6 +102,35 @@ TEST(DecoderLanes, QueueReturnsValuesInOrderAlsoForAPartialGroup) {
     // An empty queue evaluates nothing and stays empty.
     lanes.evaluate();
     EXPECT_EQ(lanes.size(), 0);
+}
+
+TEST(DecoderLaneQueue, HandsEachPayloadBackWithItsValueInOrder) {
+    const Decoder decoder(DecoderConfig{8, {32, 32}, 21});
+    constexpr int kCount = 2 * kDecoderLanes + 3;  // two full groups and a partial one
+    const std::vector<float> features = random_features(kCount, 8, 9);
+    DecoderLaneQueue<int> queue(decoder);
+    DecoderWorkspace ws;
+    decoder.prepare(ws);
+    std::vector<int> payloads;
+    std::vector<float> values;
+    const auto emit = [&](int payload, float f) {
+        payloads.push_back(payload);
+        values.push_back(f);
+    };
+    // Payloads in reverse order of the samples, so that a payload swapped for its lane fails.
+    for (int i = 0; i < kCount; ++i) {
+        queue.add(features.data() + std::size_t(i) * 8, 1000 - i, emit);
+        EXPECT_EQ(payloads.size(), std::size_t((i + 1) / kDecoderLanes * kDecoderLanes));
+    }
+    queue.flush(emit);
+    ASSERT_EQ(payloads.size(), std::size_t(kCount));
+    for (int i = 0; i < kCount; ++i) {
+        EXPECT_EQ(payloads[i], 1000 - i);
+        expect_same(values[i], decoder.forward(features.data() + std::size_t(i) * 8, ws),
+                    "sample " + std::to_string(i));
+    }
+    queue.flush(emit);  // an empty queue emits nothing
+    EXPECT_EQ(payloads.size(), std::size_t(kCount));
 }
 
 TEST(DecoderLanes, NonFiniteFeaturesGiveForwardsValues) {

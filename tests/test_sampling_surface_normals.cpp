@@ -4,7 +4,6 @@
 // implementation it replaced (bit for bit) and against the same PCA over brute-force neighbours.
 #include <gtest/gtest.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -206,30 +205,14 @@ std::vector<Eigen::Vector3f> nanoflann_normals(const RaySet& rays, const NormalC
         distance_sq[k - 1] = search_bound_sq;
         tree.findNeighbors(result, p.data(), nanoflann::SearchParams());
         const std::size_t found = result.size();
-        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        std::uint32_t kept[kMaxNeighbors];
         int used = 0;
         for (std::size_t i = 0; i < found; ++i) {
-            if (distance_sq[i] > max_radius_sq) continue;
-            mean += rays.endpoint(index[i]).cast<double>();
-            ++used;
+            if (distance_sq[i] <= max_radius_sq) kept[used++] = index[i];
         }
-        if (used < 5) continue;
-        mean /= used;
-        Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-        for (std::size_t i = 0; i < found; ++i) {
-            if (distance_sq[i] > max_radius_sq) continue;
-            const Eigen::Vector3d d = rays.endpoint(index[i]).cast<double>() - mean;
-            covariance += d * d.transpose();
-        }
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-        eig.computeDirect(covariance);
-        const Eigen::Vector3d lambda = eig.eigenvalues();  // ascending
-        if (!(lambda(2) > 0.0)) continue;
-        if (lambda(0) > config.max_flatness * lambda(1)) continue;  // not a plane
-        if (lambda(1) < config.min_spread * lambda(2)) continue;    // a line
-        Eigen::Vector3d normal = eig.eigenvectors().col(0).normalized();
-        if (normal.dot((rays.origin_of_ray(ray) - p).cast<double>()) < 0.0) normal = -normal;
-        normals[ray] = normal.cast<float>();
+        normals[ray] = fit_plane_normal(
+            used, [&](int i) -> const Eigen::Vector3f& { return rays.endpoint(kept[i]); }, p,
+            rays.origin_of_ray(ray), config);
     }
     return normals;
 }
@@ -250,24 +233,10 @@ std::vector<Eigen::Vector3f> brute_force_normals(const RaySet& rays, const Norma
         }
         std::sort(near.begin(), near.end());
         if (near.size() > static_cast<std::size_t>(k)) near.resize(static_cast<std::size_t>(k));
-        if (near.size() < 5) continue;
-        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (const auto& nb : near) mean += rays.endpoint(nb.second).cast<double>();
-        mean /= static_cast<int>(near.size());
-        Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-        for (const auto& nb : near) {
-            const Eigen::Vector3d d = rays.endpoint(nb.second).cast<double>() - mean;
-            covariance += d * d.transpose();
-        }
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-        eig.computeDirect(covariance);
-        const Eigen::Vector3d lambda = eig.eigenvalues();
-        if (!(lambda(2) > 0.0)) continue;
-        if (lambda(0) > config.max_flatness * lambda(1)) continue;
-        if (lambda(1) < config.min_spread * lambda(2)) continue;
-        Eigen::Vector3d normal = eig.eigenvectors().col(0).normalized();
-        if (normal.dot((rays.origin_of_ray(ray) - p).cast<double>()) < 0.0) normal = -normal;
-        normals[ray] = normal.cast<float>();
+        normals[ray] = fit_plane_normal(
+            static_cast<int>(near.size()),
+            [&](int i) -> const Eigen::Vector3f& { return rays.endpoint(near[i].second); }, p,
+            rays.origin_of_ray(ray), config);
     }
     return normals;
 }

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "shine/core/error.hpp"
+#include "shine/model/decoder_lanes.hpp"
 #include "shine/model/feature_encoding.hpp"
 
 namespace shine {
@@ -68,15 +69,12 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
         tbb::parallel_for(std::size_t(0), region_blocks, [&](std::size_t b) {
             const std::size_t block = first_block + b;
             CellLookup lookup(sdf.octree);
-            DecoderLanes lanes(sdf.decoder);
-            openvdb::Coord lane_ijk[kDecoderLanes];
+            DecoderLaneQueue<openvdb::Coord> lanes(sdf.decoder);
             EncodedPoint encoded;
             float feature[kMaxFeatureDim];
             auto& values = block_values[b];
-            const auto emit = [&] {
-                const int n = lanes.size();
-                const float* sdf_m = lanes.evaluate();
-                for (int s = 0; s < n; ++s) values.push_back({lane_ijk[s], sdf_m[s]});
+            const auto emit = [&](const openvdb::Coord& ijk, float sdf_m) {
+                values.push_back({ijk, sdf_m});
             };
             const std::size_t end = std::min(cells.size(), (block + 1) * kBlock);
             for (std::size_t c = block * kBlock; c < end; ++c) {
@@ -95,14 +93,12 @@ openvdb::FloatGrid::Ptr bake_level_set(const NeuralSdf& sdf, const BakeConfig& c
                             encode_point(lookup, sdf.octree, p, false, encoded);
                             if (!(encoded.level_mask & mask_bit)) continue;
                             gather_feature(encoded, sdf.octree.features().data(), dim, feature);
-                            lane_ijk[lanes.size()] = openvdb::Coord(i, j, k);
-                            lanes.add(feature);
-                            if (lanes.full()) emit();
+                            lanes.add(feature, openvdb::Coord(i, j, k), emit);
                         }
                     }
                 }
             }
-            emit();
+            lanes.flush(emit);
         });
         for (const auto& values : block_values) {
             evaluated += values.size();

@@ -59,7 +59,7 @@ Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConf
     : sdf_(sdf),
       config_(config),
       sampling_(sampling),
-      feature_adam_(config.feature_adam, sdf.octree.feature_dim()),
+      feature_adam_(config.feature_adam),
       decoder_adam_(config.decoder_adam, static_cast<int>(sdf.decoder.num_params())),
       row_state_(sdf.octree.feature_dim(), /*with_anchor=*/false,
                  sdf.octree.feature_precision() == FeaturePrecision::kFloat16) {
@@ -74,7 +74,6 @@ Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConf
     }
     if (!(config.sigma_m > 0.0f)) throw ConfigError("sigma_m must be positive");
     if (sdf.octree.feature_dim() > kMaxFeatureDim) throw ConfigError("feature_dim too large");
-    decoder_adam_.resize(1);
     decoder_grads_.assign(sdf.decoder.num_params(), 0.0f);
     chunks_.resize(std::max(1, config.num_chunks));
     partitions_.resize(kRowPartitions);
@@ -115,7 +114,6 @@ void Trainer::load_state(BinaryReader& in) {
     const auto steps_taken = in.value<std::uint32_t>("trainer step count");
     const auto scan = in.value<std::uint32_t>("trainer scan count");
     decoder_adam_.load(in);
-    if (decoder_adam_.num_rows() != 1) in.fail("decoder Adam state", "is not a single row");
     row_state_.load(in);
     steps_taken_ = steps_taken;
     scan_ = scan;
@@ -290,7 +288,7 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
                 decoder_grads_[i] += chunk.decoder_grads[i];
         }
         for (float& g : decoder_grads_) g *= inv_n;
-        decoder_adam_.step_all(sdf_.decoder.params().data(), decoder_grads_.data());
+        decoder_adam_.step(sdf_.decoder.params().data(), decoder_grads_.data());
     }
     seconds_.train += seconds_since(start);
     return stats;

@@ -105,22 +105,6 @@ void Decoder::forward_lanes(const float* features, float* out, DecoderWorkspace&
     std::copy(a + act_offset_[K] * S, a + act_offset_[K] * S + S, out);
 }
 
-DecoderLanes::DecoderLanes(const Decoder& decoder)
-    : decoder_(decoder), features_(std::size_t(decoder.input_dim()) * kDecoderLanes, 0.0f) {}
-
-void DecoderLanes::add(const float* feature) {
-    const int dim = decoder_.input_dim();
-    for (int l = 0; l < dim; ++l) features_[std::size_t(l) * kDecoderLanes + count_] = feature[l];
-    ++count_;
-}
-
-const float* DecoderLanes::evaluate() {
-    // Lanes past size() hold earlier samples' features (or zeros): evaluated and ignored.
-    if (count_ > 0) decoder_.forward_lanes(features_.data(), out_, ws_);
-    count_ = 0;
-    return out_;
-}
-
 void Decoder::input_gradient(DecoderWorkspace& ws, float* input_gradient) const {
     const int K = num_layers();
     const float* a = ws.activations.data();

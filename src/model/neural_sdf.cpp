@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "shine/model/decoder_lanes.hpp"
 #include "shine/model/feature_encoding.hpp"
 
 namespace shine {
@@ -15,27 +16,20 @@ void NeuralSdf::query(const std::vector<Eigen::Vector3f>& points_map, QueryMask 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_map.size(), 1024),
                       [&](const tbb::blocked_range<std::size_t>& range) {
                           CellLookup lookup(octree);
-                          DecoderLanes lanes(decoder);
-                          std::size_t lane_point[kDecoderLanes];
+                          DecoderLaneQueue<std::size_t> lanes(decoder);
                           EncodedPoint encoded;
                           float feature[kMaxFeatureDim];
-                          const auto emit = [&] {
-                              const int n = lanes.size();
-                              const float* f = lanes.evaluate();
-                              for (int s = 0; s < n; ++s) sdf_m[lane_point[s]] = f[s];
-                          };
+                          const auto emit = [&](std::size_t point, float f) { sdf_m[point] = f; };
                           for (std::size_t i = range.begin(); i != range.end(); ++i) {
                               encode_point(lookup, octree, points_map[i], false, encoded);
                               const bool ok =
                                   mask == QueryMask::kLevel0 ? encoded.has_level0 : encoded.valid();
                               if (!ok) continue;
                               gather_feature(encoded, octree.features().data(), dim, feature);
-                              lane_point[lanes.size()] = i;
-                              lanes.add(feature);
-                              if (lanes.full()) emit();
+                              lanes.add(feature, i, emit);
                               valid[i] = 1;
                           }
-                          emit();
+                          lanes.flush(emit);
                       });
 }
 

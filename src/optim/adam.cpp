@@ -8,16 +8,10 @@
 
 namespace shine {
 
-const AdamBiasCorrection& RowAdam::bias_for_step(std::uint32_t step) {
-    while (bias_by_step_.size() < step) {
+void AdamSchedule::reserve_steps(std::uint32_t max_step) {
+    while (bias_by_step_.size() < max_step) {
         bias_by_step_.emplace_back(config_, static_cast<std::uint32_t>(bias_by_step_.size() + 1));
     }
-    return bias_by_step_[step - 1];
-}
-
-void RowAdam::resize(std::size_t num_rows) {
-    moments_.resize(num_rows * 2 * row_dim_, 0.0f);
-    steps_.resize(num_rows, 0);
 }
 
 void adam_update_row(float* param, const float* grad, float* m, float* v, int dim,
@@ -50,67 +44,40 @@ void adam_update_row(float* param, const float* grad, float* m, float* v, int di
     for (; i < dim; ++i) adam_update(param[i], m[i], v[i], grad[i], config, bias);
 }
 
-void RowAdam::update_row(float* param, const float* grad, std::size_t row) {
-    const AdamBiasCorrection& bias = bias_for_step(++steps_[row]);
-    float* m = moments_.data() + row * 2 * row_dim_;
-    adam_update_row(param, grad, m, m + row_dim_, row_dim_, config_, bias);
+DenseAdam::DenseAdam(const AdamConfig& config, int dim)
+    : config_(config), dim_(dim), moments_(2 * std::size_t(dim), 0.0f) {}
+
+void DenseAdam::step(float* params, const float* grads) {
+    const AdamBiasCorrection bias(config_, ++step_);
+    adam_update_row(params, grads, moments_.data(), moments_.data() + dim_, dim_, config_, bias);
 }
 
-void RowAdam::step_rows(float* params, const float* grads, const std::vector<std::int32_t>& rows) {
-    for (const std::int32_t row : rows) {
-        const std::size_t base = std::size_t(row) * row_dim_;
-        update_row(params + base, grads + base, std::size_t(row));
-    }
+std::size_t DenseAdam::memory_bytes() const {
+    return moments_.size() * sizeof(float) + sizeof(step_);
 }
 
-void RowAdam::step_listed_rows(float* params, const float* row_grads,
-                               const std::vector<std::int32_t>& rows) {
-    // Rows come in random order and the loop is bound by cache misses on the step counts,
-    // moments and parameters: request them a few rows ahead.
-    constexpr std::size_t kAhead = 8;
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (i + kAhead < rows.size()) {
-            const std::size_t ahead = std::size_t(rows[i + kAhead]);
-            __builtin_prefetch(steps_.data() + ahead, 1);
-            __builtin_prefetch(moments_.data() + ahead * 2 * row_dim_, 1);
-            __builtin_prefetch(params + ahead * row_dim_, 1);
-        }
-        const std::size_t row = std::size_t(rows[i]);
-        update_row(params + row * row_dim_, row_grads + i * row_dim_, row);
-    }
-}
-
-void RowAdam::step_all(float* params, const float* grads) {
-    for (std::size_t row = 0; row < steps_.size(); ++row) {
-        const std::size_t base = row * row_dim_;
-        update_row(params + base, grads + base, row);
-    }
-}
-
-std::size_t RowAdam::memory_bytes() const {
-    return moments_.size() * sizeof(float) + steps_.size() * sizeof(std::uint32_t);
-}
-
-void RowAdam::save(BinaryWriter& out) const {
-    out.value<std::int32_t>(row_dim_);
+// The layout of a table of one row (row size, moments, one step count), which checkpoints have
+// always used for the decoder.
+void DenseAdam::save(BinaryWriter& out) const {
+    out.value<std::int32_t>(dim_);
     out.array(moments_);
-    out.array(steps_);
+    out.array(std::vector<std::uint32_t>{step_});
 }
 
-void RowAdam::load(BinaryReader& in) {
-    const auto row_dim = in.value<std::int32_t>("Adam row size");
-    if (row_dim != row_dim_) {
+void DenseAdam::load(BinaryReader& in) {
+    const auto dim = in.value<std::int32_t>("Adam row size");
+    if (dim != dim_) {
         in.fail("Adam row size",
-                std::to_string(row_dim) + " differs from this map's " + std::to_string(row_dim_));
+                std::to_string(dim) + " differs from this map's " + std::to_string(dim_));
     }
     std::vector<float> moments = in.array<float>("Adam moments");
-    std::vector<std::uint32_t> steps = in.array<std::uint32_t>("Adam step counts");
-    if (moments.size() != steps.size() * 2 * static_cast<std::size_t>(row_dim_)) {
-        in.fail("Adam moments",
-                "do not match the " + std::to_string(steps.size()) + " step counts");
+    const std::vector<std::uint32_t> steps = in.array<std::uint32_t>("Adam step counts");
+    if (steps.size() != 1) in.fail("decoder Adam state", "is not a single row");
+    if (moments.size() != 2 * std::size_t(dim_)) {
+        in.fail("Adam moments", "do not match the row size " + std::to_string(dim_));
     }
     moments_ = std::move(moments);
-    steps_ = std::move(steps);
+    step_ = steps[0];
 }
 
 }  // namespace shine

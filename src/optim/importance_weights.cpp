@@ -26,23 +26,6 @@ ImportanceWeights::ImportanceWeights(const ImportanceConfig& config, int row_dim
 
 void ImportanceWeights::resize(std::size_t num_rows) { importance_.resize(num_rows, 0.0f); }
 
-double ImportanceWeights::value(const float* params, const float* anchors,
-                                const std::vector<std::int32_t>& rows) const {
-    double sum = 0.0;
-    for (const std::int32_t row : rows) {
-        const float omega = importance_[row];
-        if (omega == 0.0f) continue;
-        const std::size_t base = std::size_t(row) * row_dim_;
-        double squared = 0.0;
-        for (int l = 0; l < row_dim_; ++l) {
-            const double d = double(params[base + l]) - double(anchors[base + l]);
-            squared += d * d;
-        }
-        sum += omega * squared;
-    }
-    return config_.regularization_weight * sum;
-}
-
 double ImportanceWeights::add_row_gradient(std::int32_t row, const float* param,
                                            const float* anchor, float* grad) const {
     const float omega = importance_[row];
@@ -57,16 +40,6 @@ double ImportanceWeights::add_row_gradient(std::int32_t row, const float* param,
     return omega * static_cast<double>(d.square().sum());
 }
 
-double ImportanceWeights::add_gradient(const float* params, const float* anchors, float* grads,
-                                       const std::vector<std::int32_t>& rows) const {
-    double sum = 0.0;
-    for (const std::int32_t row : rows) {
-        const std::size_t base = std::size_t(row) * row_dim_;
-        sum += add_row_gradient(row, params + base, anchors + base, grads + base);
-    }
-    return config_.regularization_weight * sum;
-}
-
 namespace {
 void check_sum(float s, std::size_t row) {
     if (!(s >= 0.0f) || !std::isfinite(s)) {
@@ -75,17 +48,6 @@ void check_sum(float s, std::size_t row) {
     }
 }
 }  // namespace
-
-void ImportanceWeights::update_importance(const std::vector<float>& gradient_norm_sums) {
-    if (gradient_norm_sums.size() > importance_.size()) {
-        throw DataError("importance update: " + std::to_string(gradient_norm_sums.size()) +
-                        " sums for " + std::to_string(importance_.size()) + " rows");
-    }
-    for (std::size_t i = 0; i < gradient_norm_sums.size(); ++i) {
-        check_sum(gradient_norm_sums[i], i);
-        importance_[i] = std::min(importance_[i] + gradient_norm_sums[i], config_.importance_cap);
-    }
-}
 
 void ImportanceWeights::update_importance_rows(const std::vector<std::int32_t>& rows,
                                                const std::vector<float>& sums, float scale) {

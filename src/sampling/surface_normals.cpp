@@ -3,7 +3,6 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cstdint>
 #include <vector>
@@ -51,25 +50,9 @@ std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const Norm
                 // Only neighbours within max_radius_m are used; the search bound prunes the tree
                 // walk (sparse, far regions).
                 const int used = tree.nearest(p, k, max_radius_sq, neighbors);
-                if (used < 5) continue;
-                Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-                for (int i = 0; i < used; ++i) mean += neighbors[i].position.cast<double>();
-                mean /= used;
-                Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-                for (int i = 0; i < used; ++i) {
-                    const Eigen::Vector3d d = neighbors[i].position.cast<double>() - mean;
-                    covariance += d * d.transpose();
-                }
-                Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-                eig.computeDirect(covariance);
-                const Eigen::Vector3d lambda = eig.eigenvalues();  // ascending
-                if (!(lambda(2) > 0.0)) continue;
-                if (lambda(0) > config.max_flatness * lambda(1)) continue;  // not a plane
-                if (lambda(1) < config.min_spread * lambda(2)) continue;    // a line
-                Eigen::Vector3d normal = eig.eigenvectors().col(0).normalized();
-                if (normal.dot((rays.origin_of_ray(ray) - p).cast<double>()) < 0.0)
-                    normal = -normal;
-                normals[ray] = normal.cast<float>();
+                normals[ray] = fit_plane_normal(
+                    used, [&](int i) -> const Eigen::Vector3f& { return neighbors[i].position; }, p,
+                    rays.origin_of_ray(ray), config);
             }
         });
     return normals;

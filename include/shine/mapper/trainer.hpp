@@ -138,8 +138,8 @@ class Trainer {
     NeuralSdf& sdf_;
     TrainerConfig config_;
     SamplingConfig sampling_;
-    RowAdam feature_adam_;  ///< the features' Adam settings and bias corrections (no rows)
-    RowAdam decoder_adam_;
+    AdamSchedule feature_adam_;  ///< the features' Adam settings and bias corrections
+    DenseAdam decoder_adam_;
     FeatureRowState row_state_;
     std::uint32_t scan_ = 0;  ///< begin_scan() calls (incremental mode; 0 in batch mode)
     /// Per feature row, its index in its partition's touched rows during a step, else -1.

@@ -89,27 +89,4 @@ class Decoder {
     std::vector<float> params_;
 };
 
-/// Queues samples' features and evaluates them kDecoderLanes at a time with forward_lanes(): for
-/// loops that evaluate many points (bake, queries). One per thread.
-class DecoderLanes {
-  public:
-    explicit DecoderLanes(const Decoder& decoder);
-
-    /// Samples queued (the lane the next one goes to).
-    int size() const { return count_; }
-    bool full() const { return count_ == kDecoderLanes; }
-    /// Queues F (input_dim values); the queue must not be full.
-    void add(const float* feature);
-    /// f of the queued samples in the order they were added (size() values, valid until the next
-    /// call); empties the queue.
-    const float* evaluate();
-
-  private:
-    const Decoder& decoder_;
-    DecoderWorkspace ws_;
-    std::vector<float> features_;  ///< feature l of lane s at l * kDecoderLanes + s
-    float out_[kDecoderLanes] = {};
-    int count_ = 0;
-};
-
 }  // namespace shine

@@ -42,57 +42,52 @@ inline void adam_update(float& param, float& m, float& v, float grad, const Adam
 void adam_update_row(float* param, const float* grad, float* m, float* v, int dim,
                      const AdamConfig& config, const AdamBiasCorrection& bias);
 
-/// Adam state for a parameter table of rows of `row_dim` floats that can grow.
-class RowAdam {
+/// Adam's settings and the bias corrections of each step count, computed once per step value
+/// (std::pow is costly). The moments live elsewhere: the feature rows' with the rest of a row's
+/// state (feature_row_state.hpp), the decoder's in DenseAdam.
+class AdamSchedule {
   public:
-    RowAdam() = default;
-    RowAdam(const AdamConfig& config, int row_dim) : config_(config), row_dim_(row_dim) {}
+    AdamSchedule() = default;
+    explicit AdamSchedule(const AdamConfig& config) : config_(config) {}
 
     const AdamConfig& config() const { return config_; }
     void set_learning_rate(float lr) { config_.learning_rate = lr; }
-    /// Grows the state to `num_rows` rows (new rows start with zero moments).
-    void resize(std::size_t num_rows);
-    /// Updates the listed rows of `params` with the matching rows of `grads`. Calls on disjoint
-    /// row lists may run concurrently once reserve_steps() covers every row's next step count.
-    void step_rows(float* params, const float* grads, const std::vector<std::int32_t>& rows);
-    /// Precomputes the bias corrections up to step `max_step`, so that step_rows() only reads
-    /// shared state for rows whose step count stays at or below it.
-    void reserve_steps(std::uint32_t max_step) {
-        if (max_step > 0) bias_for_step(max_step);
-    }
+    /// Precomputes the bias corrections up to step `max_step`, so that reserved_bias() of any
+    /// step up to it only reads (and may be called concurrently).
+    void reserve_steps(std::uint32_t max_step);
     /// The bias corrections of step `step` (1-based), which reserve_steps() must cover.
     const AdamBiasCorrection& reserved_bias(std::uint32_t step) const {
         return bias_by_step_[step - 1];
     }
-    /// As step_rows(), but the gradient of rows[i] is row_grads[i * row_dim, (i + 1) * row_dim):
-    /// a compact buffer of the listed rows only (the trainer's reduction writes it).
-    void step_listed_rows(float* params, const float* row_grads,
-                          const std::vector<std::int32_t>& rows);
-    /// Updates every row (dense use: the decoder as one row).
-    void step_all(float* params, const float* grads);
 
-    std::size_t num_rows() const { return steps_.size(); }
-    std::vector<std::uint32_t>& steps() { return steps_; }
+  private:
+    AdamConfig config_;
+    std::vector<AdamBiasCorrection> bias_by_step_;  ///< index step-1
+};
+
+/// Adam on one dense parameter vector of `dim` floats (the decoder): its moments and step count.
+class DenseAdam {
+  public:
+    DenseAdam() = default;
+    DenseAdam(const AdamConfig& config, int dim);
+
+    const AdamConfig& config() const { return config_; }
+    void set_learning_rate(float lr) { config_.learning_rate = lr; }
+    /// One Adam step of all `dim` parameters with their gradients.
+    void step(float* params, const float* grads);
+    std::uint32_t steps() const { return step_; }
     std::size_t memory_bytes() const;
 
-    /// The moments and per-row step counts (for a checkpoint); load() replaces them and throws
-    /// IoError (via the reader) if the stored table's shape differs from this one's row_dim.
+    /// The moments and the step count (for a checkpoint); load() replaces them and throws
+    /// IoError (via the reader) if the stored vector's size differs from this one's.
     void save(BinaryWriter& out) const;
     void load(BinaryReader& in);
 
   private:
-    const AdamBiasCorrection& bias_for_step(std::uint32_t step);
-    /// One row's update (Eigen arrays; see adam.cpp).
-    void update_row(float* param, const float* grad, std::size_t row);
-
     AdamConfig config_;
-    std::vector<AdamBiasCorrection> bias_by_step_;  ///< index step-1; pow() once per step value
-    int row_dim_ = 1;
-    /// Per row its first moments then its second moments (2 * row_dim floats): a row's state is
-    /// one contiguous block (one cache line for 8-float features), since rows are visited in
-    /// random order.
-    std::vector<float> moments_;
-    std::vector<std::uint32_t> steps_;
+    int dim_ = 0;
+    std::vector<float> moments_;  ///< the first moments, then the second moments
+    std::uint32_t step_ = 0;
 };
 
 }  // namespace shine

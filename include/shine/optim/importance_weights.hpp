@@ -66,19 +66,10 @@ class ImportanceWeights {
     /// Grows to `num_rows` rows; new rows have Omega = 0 (unconstrained).
     void resize(std::size_t num_rows);
 
-    /// lambda_r * L_r over `rows` (Eq. (3)) for the parameter table `params` and the anchors
-    /// theta* `anchors` (tables of row_dim floats per row).
-    double value(const float* params, const float* anchors,
-                 const std::vector<std::int32_t>& rows) const;
-
-    /// Adds d(lambda_r L_r)/dtheta = 2 lambda_r Omega_i (theta_i - theta*_i) to the listed rows of
-    /// `grads` and returns lambda_r * L_r over them.
-    double add_gradient(const float* params, const float* anchors, float* grads,
-                        const std::vector<std::int32_t>& rows) const;
-
-    /// The same for one row (the trainer's form: the row's value, anchor and gradient are
-    /// row_dim floats each). Returns Omega_row * |theta - theta*|^2 (times lambda_r: the caller
-    /// sums and scales).
+    /// Adds d(Omega_row |theta - theta*|^2)/dtheta = 2 lambda_r Omega_row (theta - theta*) to
+    /// `grad` for one row of the set A of Eq. (3) (the row's value, anchor and gradient are
+    /// row_dim floats each) and returns Omega_row * |theta - theta*|^2: the caller sums over A and
+    /// multiplies by lambda_r.
     double add_row_gradient(std::int32_t row, const float* param, const float* anchor,
                             float* grad) const;
 
@@ -87,12 +78,9 @@ class ImportanceWeights {
         __builtin_prefetch(importance_.data() + static_cast<std::size_t>(row));
     }
 
-    /// Eq. (4): Omega_i = min(Omega_i + gradient_norm_sums[i], Omega_m) for every row;
-    /// `gradient_norm_sums` has one entry per row (rows beyond it are unchanged). Throws
-    /// DataError if it has more entries than there are rows or a negative or non-finite entry.
-    void update_importance(const std::vector<float>& gradient_norm_sums);
-    /// Eq. (4) for the listed rows only: Omega_rows[i] = min(Omega + sums[i] * scale, Omega_m)
-    /// (the importance pass's sparse result; `scale` is 1/N). Throws DataError as above.
+    /// Eq. (4) for the rows a scan's importance pass reached: Omega_rows[i] = min(Omega +
+    /// sums[i] * scale, Omega_m) (`scale` is 1/N, see IncrementalMapper). Throws DataError for a
+    /// row outside the table, a size mismatch, or a negative or non-finite sum.
     void update_importance_rows(const std::vector<std::int32_t>& rows,
                                 const std::vector<float>& sums, float scale);
 

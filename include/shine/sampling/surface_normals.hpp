@@ -16,6 +16,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Eigenvalues>
 #include <vector>
 
 #include "shine/sampling/ray_set.hpp"
@@ -32,6 +33,36 @@ struct NormalConfig {
     float max_flatness = 0.1f;
     float min_spread = 0.05f;
 };
+
+/// The unit normal of the plane fitted to `count` points by a principal component analysis (the
+/// covariance's eigenvector of the smallest eigenvalue), pointing from `endpoint` towards
+/// `sensor`; the zero vector when there are fewer than 5 points or they do not form a plane
+/// (NormalConfig::max_flatness, min_spread). `point_at(i)` gives the i-th point. The sums run in
+/// index order in double, so two callers that list the same points in the same order get the
+/// same bits (the tests' reference searches rely on it).
+template <class PointAt>
+Eigen::Vector3f fit_plane_normal(int count, const PointAt& point_at,
+                                 const Eigen::Vector3f& endpoint, const Eigen::Vector3f& sensor,
+                                 const NormalConfig& config) {
+    if (count < 5) return Eigen::Vector3f::Zero();
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int i = 0; i < count; ++i) mean += point_at(i).template cast<double>();
+    mean /= count;
+    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+    for (int i = 0; i < count; ++i) {
+        const Eigen::Vector3d d = point_at(i).template cast<double>() - mean;
+        covariance += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(covariance);
+    const Eigen::Vector3d lambda = eig.eigenvalues();  // ascending
+    if (!(lambda(2) > 0.0)) return Eigen::Vector3f::Zero();
+    if (lambda(0) > config.max_flatness * lambda(1)) return Eigen::Vector3f::Zero();  // no plane
+    if (lambda(1) < config.min_spread * lambda(2)) return Eigen::Vector3f::Zero();    // a line
+    Eigen::Vector3d normal = eig.eigenvectors().col(0).normalized();
+    if (normal.dot((sensor - endpoint).cast<double>()) < 0.0) normal = -normal;
+    return normal.cast<float>();
+}
 
 /// Unit normal at each ray's endpoint, oriented towards the ray's sensor; the zero vector where
 /// no normal could be estimated. Parallel; deterministic.
