@@ -1,10 +1,14 @@
-// `shine eval`: quality of a predicted mesh against a reference mesh (DESIGN.md, "Evaluation
-// protocol"): accuracy, completion, Chamfer-L1 in cm; precision, completion ratio, F-score in %.
+// `shine eval`: the quality of a predicted mesh, against a reference mesh (DESIGN.md,
+// "Evaluation protocol": accuracy, completion, Chamfer-L1 in cm; precision, completion ratio,
+// F-score in %) or, on real data without one, against scans the map never saw (held-out rays
+// cast into the mesh: hit ratio, range errors; eval/heldout_ranges.hpp).
 #include <cstdio>
 #include <memory>
 #include <string>
 
 #include "command_registry.hpp"
+#include "shine/core/error.hpp"
+#include "shine/eval/heldout_ranges.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
 #include "shine/io/ply.hpp"
@@ -17,9 +21,46 @@ struct EvalOptions {
     std::string ref_path;
     EvalConfig config;
     bool json = false;
+    // Held-out evaluation.
+    std::string heldout_dir;
+    std::string frames;
+    int holdout_every = 0;
+    std::string poses_path;
+    HeldoutConfig heldout;
 };
 
+int run_heldout(const EvalOptions& options) {
+    if (options.frames.empty() == (options.holdout_every == 0)) {
+        throw ConfigError(
+            "--heldout needs the frames to score: --frames LIST (e.g. 2,5,8 or 2:52:3) or "
+            "--holdout-every N (the scans `shine map --holdout-every N` left out)");
+    }
+    ScanSequenceOptions seq_options;
+    seq_options.poses_path = options.poses_path;
+    const ScanSequence sequence = ScanSequence::open(options.heldout_dir, seq_options);
+    const std::vector<std::size_t> frames =
+        options.frames.empty() ? holdout_frames(sequence.size(), options.holdout_every)
+                               : parse_frame_list(options.frames, sequence.size());
+    HeldoutConfig config = options.heldout;
+    config.threshold_m = options.config.threshold_m;
+    const HeldoutReport report =
+        evaluate_heldout(read_ply_mesh(options.pred_path), sequence, frames, config);
+    if (options.json) {
+        std::printf("%s\n", heldout_to_json(report).c_str());
+    } else {
+        std::printf("pred     %s\nheld out %s\n%s", options.pred_path.c_str(),
+                    options.heldout_dir.c_str(), format_heldout(report).c_str());
+    }
+    return 0;
+}
+
 int run_eval(const EvalOptions& options) {
+    if (options.ref_path.empty() == options.heldout_dir.empty()) {
+        throw ConfigError(
+            "give either --ref MESH (a reference surface) or --heldout SEQUENCE (scans the map "
+            "never saw), not both or neither");
+    }
+    if (!options.heldout_dir.empty()) return run_heldout(options);
     // read_ply_mesh throws IoError naming the file for missing or corrupt input.
     const TriangleMesh ref = read_ply_mesh(options.ref_path);
     const TriangleMesh pred = read_ply_mesh(options.pred_path);
@@ -37,17 +78,35 @@ const RegisterCommand kEvalCommand(50, [](CLI::App& app, Action& action) {
     auto options = std::make_shared<EvalOptions>();
     CLI::App* cmd = app.add_subcommand(
         "eval",
-        "Compare a mesh with a reference mesh: accuracy, completion, Chamfer-L1 (cm), precision, "
-        "completion ratio, F-score (%). Completion counts only reference faces marked observed.");
+        "Score a mesh against a reference mesh (accuracy, completion, Chamfer-L1 in cm; "
+        "precision, completion ratio, F-score in %; completion counts only reference faces "
+        "marked observed), or against held-out scans: their rays cast into the mesh (hit ratio, "
+        "median and mean range error, share within the threshold; misses fail)");
     cmd->add_option("--pred", options->pred_path, "predicted mesh (PLY)")->required();
     cmd->add_option("--ref", options->ref_path,
-                    "reference mesh (PLY; optional uchar face property 'observed')")
-        ->required();
+                    "reference mesh (PLY; optional uchar face property 'observed')");
     cmd->add_option("--threshold-m", options->config.threshold_m,
-                    "distance threshold of precision and completion ratio, m (0.2 for noisy data)")
+                    "distance threshold of precision and completion ratio, and of a good held-out "
+                    "range, m (0.2 for noisy data)")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_option("--seed", options->config.seed, "seed of the surface sampling")
+        ->capture_default_str();
+    cmd->add_option("--heldout", options->heldout_dir,
+                    "sequence whose scans score the mesh (any layout `shine map` reads)");
+    cmd->add_option("--frames", options->frames,
+                    "with --heldout: the scans to score, e.g. 2,5,8 or 2:52:3 (from 0)");
+    cmd->add_option("--holdout-every", options->holdout_every,
+                    "with --heldout: score scans N-1, 2N-1, ... (those `shine map "
+                    "--holdout-every N` left out)")
+        ->check(CLI::Range(2, 1000000));
+    cmd->add_option("--poses", options->poses_path,
+                    "with --heldout: pose file (default: found in the sequence)");
+    cmd->add_option("--min-range-m", options->heldout.min_range_m,
+                    "with --heldout: rays measured closer are not scored")
+        ->capture_default_str();
+    cmd->add_option("--max-range-m", options->heldout.max_range_m,
+                    "with --heldout: rays measured farther are not scored")
         ->capture_default_str();
     cmd->add_flag("--json", options->json, "print one JSON object (metres, ratios in [0, 1])");
     cmd->callback([options, &action] { action = [options] { return run_eval(*options); }; });

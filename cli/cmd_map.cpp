@@ -14,6 +14,7 @@
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/core/stop_request.hpp"
+#include "shine/eval/heldout_ranges.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
 #include "shine/io/ply.hpp"
@@ -36,6 +37,7 @@ struct MapOptions {
     int iterations = -1;
     long long seed = -1;
     int first_frame = 0, last_frame = -1, frame_step = 1;
+    int holdout_every = 0;  ///< > 0: every N-th scan is not mapped but scores the map
     std::string poses_path;
     std::string ref_path;
     bool no_eval = false;
@@ -69,6 +71,7 @@ nlohmann::json describe_run(const MapOptions& opt, const fs::path& data,
             {"first_frame", opt.first_frame},
             {"last_frame", opt.last_frame},
             {"frame_step", opt.frame_step},
+            {"holdout_every", opt.holdout_every},
             {"poses", opt.poses_path.empty() ? "" : fs::absolute(opt.poses_path).string()},
             {"ref", opt.ref_path.empty() ? "" : fs::absolute(opt.ref_path).string()},
             {"no_eval", opt.no_eval},
@@ -104,6 +107,7 @@ MapOptions options_from_checkpoint(const MapOptions& opt, MapperConfig& config) 
         resumed.first_frame = run.at("first_frame").get<int>();
         resumed.last_frame = run.at("last_frame").get<int>();
         resumed.frame_step = run.at("frame_step").get<int>();
+        resumed.holdout_every = run.value("holdout_every", 0);
         resumed.poses_path = run.at("poses").get<std::string>();
         resumed.ref_path = run.at("ref").get<std::string>();
         resumed.no_eval = run.at("no_eval").get<bool>();
@@ -229,7 +233,25 @@ int run_map(const MapOptions& given_options) {
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
-    const ScanSequence sequence = ScanSequence::open(data, seq_options);
+    const ScanSequence selected = ScanSequence::open(data, seq_options);
+    // With --holdout-every N the map never sees every N-th scan; they score it afterwards.
+    std::vector<std::size_t> heldout, mapped;
+    if (opt.holdout_every != 0) {
+        heldout = holdout_frames(selected.size(), opt.holdout_every);
+        for (std::size_t i = 0, h = 0; i < selected.size(); ++i) {
+            if (h < heldout.size() && heldout[h] == i) {
+                ++h;
+            } else {
+                mapped.push_back(i);
+            }
+        }
+        if (heldout.empty()) {
+            throw ConfigError("--holdout-every " + std::to_string(opt.holdout_every) +
+                              " holds out no scan of the " + std::to_string(selected.size()) +
+                              " selected: use a smaller N");
+        }
+    }
+    const ScanSequence sequence = heldout.empty() ? selected : selected.subset(mapped);
     const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
     const fs::path out = opt.out;
     if (!resuming && fs::exists(checkpoint_file(out))) {
@@ -325,6 +347,18 @@ int run_map(const MapOptions& given_options) {
         json["seconds"]["eval"] = seconds_since(t0);
         std::printf("accuracy against %s:\n%s", ref.c_str(), format_metrics(metrics).c_str());
     }
+    if (!heldout.empty()) {
+        const auto t0 = std::chrono::steady_clock::now();
+        HeldoutConfig heldout_config;
+        heldout_config.min_range_m = config.preprocess.min_range_m;
+        heldout_config.max_range_m = config.preprocess.max_range_m;
+        const HeldoutReport report =
+            evaluate_heldout(read_ply_mesh(out / "mesh.ply"), selected, heldout, heldout_config);
+        json["heldout"] = nlohmann::json::parse(heldout_to_json(report));
+        json["heldout"]["every"] = opt.holdout_every;
+        json["seconds"]["heldout"] = seconds_since(t0);
+        std::printf("%s", format_heldout(report).c_str());
+    }
     json["peak_rss_bytes"] = peak_rss_bytes();
     write_json(out / "stats.json", json);
     // The products are complete: the checkpoint is no longer needed.
@@ -360,6 +394,10 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
+    cmd->add_option("--holdout-every", opt->holdout_every,
+                    "Map without every N-th selected scan (N-1, 2N-1, ...) and score the map on "
+                    "those: their rays cast into the mesh, range errors (stats.json \"heldout\")")
+        ->check(CLI::Range(2, 1000000));
     cmd->add_flag("--half-features", opt->half_features,
                   "Store the features in float16 (map.feature_precision: float16)");
     cmd->add_option("--max-map-mb", opt->max_map_mb,

@@ -17,7 +17,7 @@ namespace {
 using shine::TriangleMesh;
 using shine::sim::LidarConfig;
 using shine::sim::LidarScan;
-using shine::sim::RayCaster;
+using shine::RayCaster;
 
 constexpr double kSensorHeightM = 1.73;
 constexpr double kPointToleranceM = 1e-4;  // float storage of points up to ~80 m
@@ -199,7 +199,7 @@ TEST(LidarSimulator, SequenceFilesReadBackAndMarkObservedTriangles) {
         // marked observed.
         for (std::size_t i = 0; i < points_sensor.size(); i += 37) {
             const Eigen::Vector3d p = points_sensor[i].cast<double>();
-            const shine::sim::RayHit hit = caster.cast(
+            const shine::RayHit hit = caster.cast(
                 poses[frame].translation(), (poses[frame].linear() * p).normalized(), 0.0, 100.0);
             ASSERT_TRUE(hit.hit());
             EXPECT_NEAR(hit.distance_m, p.norm(), 1e-3);

@@ -1,17 +1,18 @@
+// The ray caster (geometry module) on the simulator's meshes, against brute force.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
 #include "shine/core/error.hpp"
+#include "shine/geometry/ray_caster.hpp"
 #include "shine/sim/mesh_primitives.hpp"
-#include "shine/sim/ray_caster.hpp"
 
 namespace {
 
 using shine::TriangleMesh;
-using shine::sim::RayCaster;
-using shine::sim::RayHit;
+using shine::RayCaster;
+using shine::RayHit;
 
 constexpr double kDistanceToleranceM = 1e-5;  // 10 um
 
@@ -45,21 +46,21 @@ double analytic_box_entry(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
 TEST(MollerTrumbore, HitsInsideMissesOutsideAndParallel) {
     const Eigen::Vector3d v0(0, 0, 0), v1(1, 0, 0), v2(0, 1, 0);
     double t = -1.0;
-    EXPECT_TRUE(shine::sim::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0,
+    EXPECT_TRUE(shine::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0,
                                                    10.0, t));
     EXPECT_DOUBLE_EQ(t, 2.0);
     // Two-sided: the same triangle seen from below.
-    EXPECT_TRUE(shine::sim::intersect_ray_triangle({0.25, 0.25, -3.0}, {0, 0, 1}, v0, v1, v2, 0.0,
+    EXPECT_TRUE(shine::intersect_ray_triangle({0.25, 0.25, -3.0}, {0, 0, 1}, v0, v1, v2, 0.0,
                                                    10.0, t));
     EXPECT_DOUBLE_EQ(t, 3.0);
-    EXPECT_FALSE(shine::sim::intersect_ray_triangle({0.75, 0.75, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0,
+    EXPECT_FALSE(shine::intersect_ray_triangle({0.75, 0.75, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0,
                                                     10.0, t));
     EXPECT_FALSE(
-        shine::sim::intersect_ray_triangle({0.25, 0.25, 0.0}, {1, 0, 0}, v0, v1, v2, 0.0, 10.0, t));
+        shine::intersect_ray_triangle({0.25, 0.25, 0.0}, {1, 0, 0}, v0, v1, v2, 0.0, 10.0, t));
     // Outside [t_min, t_max].
     EXPECT_FALSE(
-        shine::sim::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0, 1.5, t));
-    EXPECT_FALSE(shine::sim::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 2.5,
+        shine::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0, 1.5, t));
+    EXPECT_FALSE(shine::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 2.5,
                                                     10.0, t));
 }
 

@@ -216,4 +216,19 @@ Scan ScanSequence::load(std::size_t i) const {
     return scan;
 }
 
+ScanSequence ScanSequence::subset(const std::vector<std::size_t>& indices) const {
+    ScanSequence part;
+    part.dir_ = dir_;
+    for (const std::size_t i : indices) {
+        if (i >= scan_paths_.size()) {
+            throw ConfigError("scan " + std::to_string(i) + " is outside the sequence '" +
+                              dir_.string() + "' of " + std::to_string(scan_paths_.size()) +
+                              " scans");
+        }
+        part.scan_paths_.push_back(scan_paths_[i]);
+        part.poses_.push_back(poses_[i]);
+    }
+    return part;
+}
+
 }  // namespace shine

@@ -53,6 +53,10 @@ class ScanSequence {
     /// Reads scan i from disk (points as stored; filtering is preprocess_scan's job).
     Scan load(std::size_t i) const;
 
+    /// The scans `indices` of this sequence, in that order: held-out evaluation maps with some
+    /// scans and scores the map on the others. Throws ConfigError for an index out of range.
+    ScanSequence subset(const std::vector<std::size_t>& indices) const;
+
   private:
     std::filesystem::path dir_;
     std::vector<std::filesystem::path> scan_paths_;

@@ -15,8 +15,8 @@
 #include <limits>
 #include <vector>
 
+#include "shine/geometry/ray_caster.hpp"
 #include "shine/geometry/triangle_mesh.hpp"
-#include "shine/sim/ray_caster.hpp"
 
 namespace shine::sim {
 

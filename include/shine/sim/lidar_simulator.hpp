@@ -9,9 +9,9 @@
 #include <filesystem>
 #include <vector>
 
+#include "shine/geometry/ray_caster.hpp"
 #include "shine/sim/block_ray_caster.hpp"
 #include "shine/sim/drive_trajectory.hpp"
-#include "shine/sim/ray_caster.hpp"
 #include "shine/sim/street_scene.hpp"
 
 namespace shine::sim {

@@ -1,4 +1,4 @@
-#include "shine/sim/ray_caster.hpp"
+#include "shine/geometry/ray_caster.hpp"
 
 #include <algorithm>
 #include <array>
@@ -7,7 +7,7 @@
 
 #include "shine/core/error.hpp"
 
-namespace shine::sim {
+namespace shine {
 namespace ray_caster_internal {
 
 constexpr int kBins = 16;
@@ -366,4 +366,4 @@ RayHit RayCaster::cast_brute_force(const Eigen::Vector3d& origin_m,
     return best;
 }
 
-}  // namespace shine::sim
+}  // namespace shine

@@ -14,7 +14,7 @@
 
 #include "shine/geometry/triangle_mesh.hpp"
 
-namespace shine::sim {
+namespace shine {
 
 /// Result of a closest-hit query.
 struct RayHit {
@@ -78,4 +78,4 @@ class RayCaster {
     std::vector<std::int32_t> triangle_ids_;  ///< original index of each triangle slot
 };
 
-}  // namespace shine::sim
+}  // namespace shine
