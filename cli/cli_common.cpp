@@ -7,6 +7,8 @@
 #include <thread>
 
 #include "shine/core/error.hpp"
+#include "shine/eval/heldout_ranges.hpp"
+#include "shine/io/ply.hpp"
 #include "shine/sim/lidar_simulator.hpp"
 
 namespace shine::cli {
@@ -64,6 +66,47 @@ void add_evaluation_options(CLI::App* cmd, std::string& ref_path, bool& no_eval)
     cmd->add_option("--ref", ref_path,
                     "Reference mesh to evaluate against (default: DATA/gt_mesh.ply if present)");
     cmd->add_flag("--no-eval", no_eval, "Skip the evaluation");
+}
+
+void add_holdout_option(CLI::App* cmd, int& holdout_every) {
+    cmd->add_option("--holdout-every", holdout_every,
+                    "Map without every N-th selected scan (N-1, 2N-1, ...) and score the mesh on "
+                    "those: their rays cast into it, range errors (stats.json \"heldout\")")
+        ->check(CLI::Range(2, 1000000));
+}
+
+HoldoutSplit split_holdout(const ScanSequence& selected, int every) {
+    HoldoutSplit split;
+    if (every != 0) split.heldout = holdout_frames(selected.size(), every);
+    for (std::size_t i = 0, h = 0; i < selected.size(); ++i) {
+        if (h < split.heldout.size() && split.heldout[h] == i) {
+            ++h;
+        } else {
+            split.mapped.push_back(i);
+        }
+    }
+    if (every != 0 && split.heldout.empty()) {
+        throw ConfigError("--holdout-every " + std::to_string(every) +
+                          " holds out no scan of the " + std::to_string(selected.size()) +
+                          " selected: use a smaller N");
+    }
+    return split;
+}
+
+void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& selected,
+                   const HoldoutSplit& split, int every, const PreprocessConfig& preprocess,
+                   nlohmann::json& json) {
+    if (split.heldout.empty()) return;
+    const auto start = std::chrono::steady_clock::now();
+    HeldoutConfig config;
+    config.min_range_m = preprocess.min_range_m;
+    config.max_range_m = preprocess.max_range_m;
+    const HeldoutReport report =
+        evaluate_heldout(read_ply_mesh(mesh_path), selected, split.heldout, config);
+    json["heldout"] = nlohmann::json::parse(heldout_to_json(report));
+    json["heldout"]["every"] = every;
+    json["seconds"]["heldout"] = seconds_since(start);
+    std::printf("%s", format_heldout(report).c_str());
 }
 
 }  // namespace shine::cli

@@ -7,7 +7,12 @@
 #include <chrono>
 #include <filesystem>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
+
+#include "shine/io/preprocess.hpp"
+#include "shine/io/scan_sequence.hpp"
 
 namespace shine::cli {
 
@@ -36,6 +41,26 @@ void add_scan_selection_options(CLI::App* cmd, int& first_frame, int& last_frame
 
 /// The evaluation options: --ref (reference mesh) and --no-eval.
 void add_evaluation_options(CLI::App* cmd, std::string& ref_path, bool& no_eval);
+
+/// The scans a run maps and those it holds out (`--holdout-every N`): indices into the selected
+/// sequence; all scans are mapped when N is 0.
+struct HoldoutSplit {
+    std::vector<std::size_t> mapped;
+    std::vector<std::size_t> heldout;
+};
+
+/// Splits `selected` for --holdout-every `every` (0: none held out). Throws ConfigError when N
+/// holds out no scan.
+HoldoutSplit split_holdout(const ScanSequence& selected, int every);
+
+/// Scores `mesh_path` on the held-out scans of `selected` with the run's range limits, prints
+/// the table and stores it in json["heldout"] (and its seconds in json["seconds"]["heldout"]).
+void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& selected,
+                   const HoldoutSplit& split, int every, const PreprocessConfig& preprocess,
+                   nlohmann::json& json);
+
+/// --holdout-every N: map without every N-th selected scan and score the result on those.
+void add_holdout_option(CLI::App* cmd, int& holdout_every);
 
 /// Seconds since `start`.
 inline double seconds_since(std::chrono::steady_clock::time_point start) {

@@ -14,7 +14,6 @@
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/core/stop_request.hpp"
-#include "shine/eval/heldout_ranges.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
 #include "shine/io/ply.hpp"
@@ -235,23 +234,8 @@ int run_map(const MapOptions& given_options) {
     seq_options.poses_path = opt.poses_path;
     const ScanSequence selected = ScanSequence::open(data, seq_options);
     // With --holdout-every N the map never sees every N-th scan; they score it afterwards.
-    std::vector<std::size_t> heldout, mapped;
-    if (opt.holdout_every != 0) {
-        heldout = holdout_frames(selected.size(), opt.holdout_every);
-        for (std::size_t i = 0, h = 0; i < selected.size(); ++i) {
-            if (h < heldout.size() && heldout[h] == i) {
-                ++h;
-            } else {
-                mapped.push_back(i);
-            }
-        }
-        if (heldout.empty()) {
-            throw ConfigError("--holdout-every " + std::to_string(opt.holdout_every) +
-                              " holds out no scan of the " + std::to_string(selected.size()) +
-                              " selected: use a smaller N");
-        }
-    }
-    const ScanSequence sequence = heldout.empty() ? selected : selected.subset(mapped);
+    const HoldoutSplit split = split_holdout(selected, opt.holdout_every);
+    const ScanSequence sequence = selected.subset(split.mapped);
     const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
     const fs::path out = opt.out;
     if (!resuming && fs::exists(checkpoint_file(out))) {
@@ -347,18 +331,7 @@ int run_map(const MapOptions& given_options) {
         json["seconds"]["eval"] = seconds_since(t0);
         std::printf("accuracy against %s:\n%s", ref.c_str(), format_metrics(metrics).c_str());
     }
-    if (!heldout.empty()) {
-        const auto t0 = std::chrono::steady_clock::now();
-        HeldoutConfig heldout_config;
-        heldout_config.min_range_m = config.preprocess.min_range_m;
-        heldout_config.max_range_m = config.preprocess.max_range_m;
-        const HeldoutReport report =
-            evaluate_heldout(read_ply_mesh(out / "mesh.ply"), selected, heldout, heldout_config);
-        json["heldout"] = nlohmann::json::parse(heldout_to_json(report));
-        json["heldout"]["every"] = opt.holdout_every;
-        json["seconds"]["heldout"] = seconds_since(t0);
-        std::printf("%s", format_heldout(report).c_str());
-    }
+    score_heldout(out / "mesh.ply", selected, split, opt.holdout_every, config.preprocess, json);
     json["peak_rss_bytes"] = peak_rss_bytes();
     write_json(out / "stats.json", json);
     // The products are complete: the checkpoint is no longer needed.
@@ -394,10 +367,7 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
-    cmd->add_option("--holdout-every", opt->holdout_every,
-                    "Map without every N-th selected scan (N-1, 2N-1, ...) and score the map on "
-                    "those: their rays cast into the mesh, range errors (stats.json \"heldout\")")
-        ->check(CLI::Range(2, 1000000));
+    add_holdout_option(cmd, opt->holdout_every);
     cmd->add_flag("--half-features", opt->half_features,
                   "Store the features in float16 (map.feature_precision: float16)");
     cmd->add_option("--max-map-mb", opt->max_map_mb,

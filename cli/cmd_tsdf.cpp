@@ -30,6 +30,7 @@ struct TsdfOptions {
     TsdfMapperConfig config;
     int threads = 0;
     int first_frame = 0, last_frame = -1, frame_step = 1;
+    int holdout_every = 0;  ///< > 0: every N-th scan is not fused but scores the mesh
     std::string poses_path;
     std::string ref_path;
     bool no_eval = false;
@@ -62,7 +63,10 @@ int run_tsdf(const TsdfOptions& opt) {
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
-    const ScanSequence sequence = ScanSequence::open(data, seq_options);
+    const ScanSequence selected = ScanSequence::open(data, seq_options);
+    // With --holdout-every N every N-th scan is not fused; they score the mesh afterwards.
+    const HoldoutSplit split = split_holdout(selected, opt.holdout_every);
+    const ScanSequence sequence = selected.subset(split.mapped);
     fs::path ref = opt.ref_path;
     if (ref.empty() && !opt.no_eval && fs::exists(data / "gt_mesh.ply")) ref = data / "gt_mesh.ply";
     if (!ref.empty() && !fs::is_regular_file(ref)) {
@@ -150,6 +154,7 @@ int run_tsdf(const TsdfOptions& opt) {
         json["seconds"]["eval"] = seconds_since(t0);
         std::printf("accuracy against %s:\n%s", ref.c_str(), format_metrics(metrics).c_str());
     }
+    score_heldout(out / "mesh.ply", selected, split, opt.holdout_every, config.preprocess, json);
     json["seconds"]["total"] = seconds_since(start_total);
     json["peak_rss_bytes"] = peak_rss_bytes();
     write_stream_atomically(out / "stats.json",
@@ -173,6 +178,17 @@ const RegisterCommand kRegister(60, [](CLI::App& app, Action& action) {
     cmd->add_option("--trunc-m", c.tsdf.trunc_m,
                     "Truncation distance, m (VDBFusion sdf_trunc; it uses 3 voxels)")
         ->capture_default_str();
+    cmd->add_option("--voxel-downsample-m", c.preprocess.voxel_downsample_m,
+                    "Keep one point per voxel of this size before fusing, m (0: every point, as "
+                    "VDBFusion's loaders)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    cmd->add_option("--min-range-m", c.preprocess.min_range_m, "Drop points closer than this, m")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    cmd->add_option("--max-range-m", c.preprocess.max_range_m, "Drop points farther than this, m")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
     cmd->add_flag("--space-carving", c.tsdf.space_carving,
                   "Update every voxel from the sensor to the point, not only the band");
     cmd->add_option("--min-weight", c.mesh.min_weight,
@@ -187,6 +203,7 @@ const RegisterCommand kRegister(60, [](CLI::App& app, Action& action) {
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
+    add_holdout_option(cmd, opt->holdout_every);
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
     cmd->callback([opt, &action] { action = [opt] { return run_tsdf(*opt); }; });
 });
