@@ -37,6 +37,7 @@ struct MapOptions {
     long long seed = -1;
     int first_frame = 0, last_frame = -1, frame_step = 1;
     std::string poses_path;
+    std::string topic;  ///< recordings: the PointCloud2 topic
     std::string ref_path;
     bool no_eval = false;
     bool quiet = false;
@@ -70,6 +71,7 @@ nlohmann::json describe_run(const MapOptions& opt, const fs::path& data,
             {"last_frame", opt.last_frame},
             {"frame_step", opt.frame_step},
             {"poses", opt.poses_path.empty() ? "" : fs::absolute(opt.poses_path).string()},
+            {"topic", opt.topic},
             {"ref", opt.ref_path.empty() ? "" : fs::absolute(opt.ref_path).string()},
             {"no_eval", opt.no_eval},
             {"config_yaml", config_to_yaml(config)}};
@@ -105,6 +107,7 @@ MapOptions options_from_checkpoint(const MapOptions& opt, MapperConfig& config) 
         resumed.last_frame = run.at("last_frame").get<int>();
         resumed.frame_step = run.at("frame_step").get<int>();
         resumed.poses_path = run.at("poses").get<std::string>();
+        resumed.topic = run.value("topic", std::string());
         resumed.ref_path = run.at("ref").get<std::string>();
         resumed.no_eval = run.at("no_eval").get<bool>();
         parse_config_yaml(run.at("config_yaml").get<std::string>(),
@@ -229,6 +232,7 @@ int run_map(const MapOptions& given_options) {
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
+    seq_options.topic = opt.topic;
     const ScanSequence sequence = ScanSequence::open(data, seq_options);
     const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
     const fs::path out = opt.out;
@@ -339,7 +343,8 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
         "map",
         "Map a scan sequence into OUT/map.vdb, OUT/surface.vdb, OUT/mesh.ply, OUT/stats.json");
     cmd->add_option("data", opt->data,
-                    "Sequence directory (KITTI layout or .ply/.pcd scans with poses); default: the "
+                    "Sequence directory (KITTI layout or .ply/.pcd scans with poses) or recording "
+                    "(ROS 1 .bag, ROS 2 bag folder, .mcap, .db3; needs --poses); default: the "
                     "bundled example street, simulated on first use");
     cmd->add_option("-o,--output", opt->out, "Output directory")->capture_default_str();
     cmd->add_option("-c,--config", opt->config_path,
@@ -359,6 +364,7 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
                     "Incremental mode: write OUT/progress/mesh_NNNNNN.ply every K frames");
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
+    add_topic_option(cmd, opt->topic);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     cmd->add_flag("--half-features", opt->half_features,
                   "Store the features in float16 (map.feature_precision: float16)");

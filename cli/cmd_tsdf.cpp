@@ -31,6 +31,7 @@ struct TsdfOptions {
     int threads = 0;
     int first_frame = 0, last_frame = -1, frame_step = 1;
     std::string poses_path;
+    std::string topic;
     std::string ref_path;
     bool no_eval = false;
     bool quiet = false;
@@ -62,6 +63,7 @@ int run_tsdf(const TsdfOptions& opt) {
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
+    seq_options.topic = opt.topic;
     const ScanSequence sequence = ScanSequence::open(data, seq_options);
     fs::path ref = opt.ref_path;
     if (ref.empty() && !opt.no_eval && fs::exists(data / "gt_mesh.ply")) ref = data / "gt_mesh.ply";
@@ -186,6 +188,7 @@ const RegisterCommand kRegister(60, [](CLI::App& app, Action& action) {
         ->check(CLI::NonNegativeNumber);
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
+    add_topic_option(cmd, opt->topic);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
     cmd->callback([opt, &action] { action = [opt] { return run_tsdf(*opt); }; });
