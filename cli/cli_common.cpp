@@ -64,8 +64,9 @@ void add_scan_selection_options(CLI::App* cmd, int& first_frame, int& last_frame
 }
 
 void add_topic_option(CLI::App* cmd, std::string& topic) {
-    cmd->add_option("--topic", topic,
-                    "Recordings: the sensor_msgs/PointCloud2 topic to read (default: the only one)");
+    cmd->add_option(
+        "--topic", topic,
+        "Recordings: the sensor_msgs/PointCloud2 topic to read (default: the only one)");
 }
 
 void add_evaluation_options(CLI::App* cmd, std::string& ref_path, bool& no_eval) {

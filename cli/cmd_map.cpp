@@ -241,6 +241,8 @@ int run_map(const MapOptions& given_options) {
                           "' holds an interrupted run: continue it with `shine map --resume " +
                           out.string() + "`, or delete that file to start again from scratch");
     }
+    std::error_code exists_ec;
+    const bool out_existed = fs::exists(out, exists_ec);
     ensure_directory(out);
 
     // Ctrl-C / SIGTERM finish the current step and write a checkpoint (checkpoint.hpp).
@@ -261,10 +263,18 @@ int run_map(const MapOptions& given_options) {
 
     std::optional<SequenceMap> batch_map;
     std::optional<IncrementalSequenceMap> incremental_map;
-    if (incremental) {
-        incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
-    } else {
-        batch_map = map_sequence(config, sequence, out, {}, &control);
+    try {
+        if (incremental) {
+            incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
+        } else {
+            batch_map = map_sequence(config, sequence, out, {}, &control);
+        }
+    } catch (const Error&) {
+        // A scan that cannot be read (a damaged message deep in a recording) leaves no empty
+        // output directory behind.
+        std::error_code ec;
+        if (!out_existed && fs::is_empty(out, ec)) fs::remove(out, ec);
+        throw;
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();

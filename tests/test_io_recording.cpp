@@ -48,9 +48,9 @@ void write_all(const fs::path& path, const std::string& bytes) {
 class Recordings : public ::testing::Test {
   protected:
     static void SetUpTestSuite() {
-        writer_available_ =
-            std::system("/usr/bin/python3 -c 'import rosbag, sensor_msgs, lz4, zstandard' "
-                        ">/dev/null 2>&1") == 0;
+        writer_available_ = std::system(
+                                "/usr/bin/python3 -c 'import rosbag, sensor_msgs, lz4, zstandard' "
+                                ">/dev/null 2>&1") == 0;
         if (!writer_available_) return;
         root_ = fs::path(SHINE_TEST_TMP_DIR) / "io_recording";
         fs::remove_all(root_);
@@ -75,9 +75,8 @@ class Recordings : public ::testing::Test {
         }
         write_kitti_poses(root_ / "kitti" / "poses.txt", poses);
         const std::string command = "/usr/bin/python3 '" + kWriter.string() + "' '" +
-                                    (root_ / "kitti").string() + "' '" +
-                                    (root_ / "rec").string() + "' > '" +
-                                    (root_ / "writer.log").string() + "' 2>&1";
+                                    (root_ / "kitti").string() + "' '" + (root_ / "rec").string() +
+                                    "' > '" + (root_ / "writer.log").string() + "' 2>&1";
         writer_ok_ = std::system(command.c_str()) == 0;
     }
 
@@ -179,8 +178,7 @@ TEST_F(Recordings, SeveralPointCloudTopicsNeedTopicAndAreListed) {
         const std::string m = e.what();
         EXPECT_NE(m.find("two_topics.bag"), std::string::npos) << m;
         EXPECT_NE(m.find("--topic"), std::string::npos) << m;
-        EXPECT_NE(m.find("/points_b  sensor_msgs/PointCloud2  2 messages"), std::string::npos)
-            << m;
+        EXPECT_NE(m.find("/points_b  sensor_msgs/PointCloud2  2 messages"), std::string::npos) << m;
     }
     ScanSequenceOptions options = with_poses();
     options.topic = "/points_b";
@@ -207,14 +205,15 @@ TEST_F(Recordings, RecordingOfAnotherMessageTypeIsRejected) {
 }
 
 TEST_F(Recordings, PointCloudWithoutZIsRejectedNamingTheFile) {
-    const ScanSequence seq = ScanSequence::open(rec("no_z.bag"), with_poses());
+    // Opening decodes the first message, so the layout problem stops a run before any output.
     try {
-        seq.load(0);
+        ScanSequence::open(rec("no_z.bag"), with_poses());
         FAIL() << "expected DataError";
     } catch (const DataError& e) {
         const std::string m = e.what();
         EXPECT_NE(m.find("no_z.bag"), std::string::npos) << m;
         EXPECT_NE(m.find("x, y and z"), std::string::npos) << m;
+        EXPECT_NE(m.find("fields: x y intensity ring t"), std::string::npos) << m;
     }
 }
 
@@ -255,7 +254,8 @@ TEST_F(Recordings, EmptyTruncatedAndCorruptRecordingsNameTheFile) {
         std::string bytes;
     };
     std::vector<Case> cases;
-    for (const char* ext : {".bag", ".mcap", ".db3"}) cases.push_back({std::string("empty") + ext, ""});
+    for (const char* ext : {".bag", ".mcap", ".db3"})
+        cases.push_back({std::string("empty") + ext, ""});
     const std::string bag = read_all(rec("street_bz2.bag"));
     const std::string lz4 = read_all(rec("street_lz4.bag"));
     const std::string mcap = read_all(rec("street_mcap") / "street_mcap_0.mcap");

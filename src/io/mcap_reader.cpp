@@ -6,10 +6,10 @@
 // statistics, attachments, metadata, summary offsets) are skipped.
 #include "shine/io/mcap_reader.hpp"
 
+#include <zlib.h>
+
 #include <algorithm>
 #include <map>
-
-#include <zlib.h>
 
 #include "recording_bytes.hpp"
 #include "shine/core/error.hpp"
@@ -71,8 +71,8 @@ class McapReader final : public RecordingReader {
             t.name = ch.topic;
             const auto s = schema_names_.find(ch.schema_id);
             t.type = s == schema_names_.end() ? std::string() : s->second;
-            t.encoding = ch.message_encoding == "ros1" ? MessageEncoding::kRos1
-                                                        : MessageEncoding::kCdr;
+            t.encoding =
+                ch.message_encoding == "ros1" ? MessageEncoding::kRos1 : MessageEncoding::kCdr;
             const auto it = messages_.find(id);
             if (it != messages_.end()) t.message_count += it->second.size();
         }
@@ -180,10 +180,14 @@ class McapReader final : public RecordingReader {
         const std::uint16_t channel = c.u16("channel id");
         c.u32("sequence");
         const std::uint64_t log_time = c.u64("log time");
+        c.u64("publish time");
+        const std::string_view data = c.rest();
         RecordingMessage m;
         m.log_time_ns = static_cast<std::int64_t>(log_time);
         m.block = block;
         m.offset = record_pos;
+        m.head_bytes = static_cast<std::uint8_t>(std::min(data.size(), m.head.size()));
+        if (m.head_bytes > 0) std::memcpy(m.head.data(), data.data(), m.head_bytes);
         messages_[channel].push_back(m);
     }
 
@@ -247,7 +251,8 @@ class McapReader final : public RecordingReader {
         const std::string tail = file_.read(pos, kMagic.size(), "closing magic");
         if (tail != kMagic) {
             throw IoError(std::string(kKind) + " '" + path().string() + "', byte " +
-                          std::to_string(pos) + ": the footer is not followed by the MCAP magic "
+                          std::to_string(pos) +
+                          ": the footer is not followed by the MCAP magic "
                           "(corrupt file)");
         }
         (void)kOpHeader;

@@ -116,15 +116,15 @@ Cloud parse(std::string_view message, MessageEncoding encoding, const std::strin
     const std::uint32_t sec = r.u32("header.stamp.sec");
     const std::uint32_t nsec = r.u32("header.stamp.nanosec");
     // ROS 2 stamps are int32 seconds, ROS 1 uint32; negative stamps do not occur in recordings.
-    cloud.stamp_s = (cdr ? static_cast<double>(static_cast<std::int32_t>(sec))
-                         : static_cast<double>(sec)) +
-                    static_cast<double>(nsec) * 1e-9;
+    cloud.stamp_s =
+        (cdr ? static_cast<double>(static_cast<std::int32_t>(sec)) : static_cast<double>(sec)) +
+        static_cast<double>(nsec) * 1e-9;
     cloud.frame_id = r.str("header.frame_id");
     cloud.height = r.u32("height");
     cloud.width = r.u32("width");
     const std::uint32_t n_fields = r.u32("fields length");
-    if (n_fields > message.size()) r.cursor().fail("field count " + std::to_string(n_fields) +
-                                                   " is larger than the message");
+    if (n_fields > message.size())
+        r.cursor().fail("field count " + std::to_string(n_fields) + " is larger than the message");
     for (std::uint32_t i = 0; i < n_fields; ++i) {
         Field f;
         f.name = r.str("field name");
@@ -200,8 +200,9 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
     const Field* axes[3] = {find_field(cloud, "x"), find_field(cloud, "y"), find_field(cloud, "z")};
     for (const Field* f : axes) {
         if (!f || (f->datatype != kFloat32 && f->datatype != kFloat64) || f->count < 1) {
-            throw DataError(where + ": the PointCloud2 needs fields x, y and z as float32 or "
-                                    "float64; its fields: " +
+            throw DataError(where +
+                            ": the PointCloud2 needs fields x, y and z as float32 or "
+                            "float64; its fields: " +
                             field_list(cloud));
         }
     }
@@ -275,7 +276,8 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
         constexpr double kAbsoluteTimeS = 1e6;
         const double offset = max_abs_time > kAbsoluteTimeS ? out.stamp_s : 0.0;
         out.point_time_s.resize(raw_time.size());
-        for (std::size_t i = 0; i < raw_time.size(); ++i) out.point_time_s[i] = raw_time[i] - offset;
+        for (std::size_t i = 0; i < raw_time.size(); ++i)
+            out.point_time_s[i] = raw_time[i] - offset;
         out.time_field = time->name;
     }
     return out;

@@ -27,8 +27,7 @@ void check_pose_times(const std::vector<StampedPose>& poses, const std::string& 
         if (!(poses[i].timestamp_s > poses[i - 1].timestamp_s)) {
             throw DataError("pose file '" + source + "': pose " + std::to_string(i + 1) +
                             " has time " + seconds(poses[i].timestamp_s) +
-                            ", not after the previous pose's " +
-                            seconds(poses[i - 1].timestamp_s) +
+                            ", not after the previous pose's " + seconds(poses[i - 1].timestamp_s) +
                             ": poses matched by time must be sorted with distinct timestamps");
         }
     }
@@ -48,9 +47,9 @@ Eigen::Isometry3d interpolate_pose(const std::vector<StampedPose>& poses, double
                         "scans with --first-frame / --last-frame");
     }
     // First pose with time >= stamp - tolerance.
-    const auto it = std::lower_bound(
-        poses.begin(), poses.end(), stamp_s - kPoseStampToleranceS,
-        [](const StampedPose& p, double t) { return p.timestamp_s < t; });
+    const auto it =
+        std::lower_bound(poses.begin(), poses.end(), stamp_s - kPoseStampToleranceS,
+                         [](const StampedPose& p, double t) { return p.timestamp_s < t; });
     if (it != poses.end() && std::abs(it->timestamp_s - stamp_s) <= kPoseStampToleranceS) {
         return it->T_world_sensor;
     }

@@ -201,13 +201,11 @@ RecordingTopic select_point_cloud_topic(const RecordingReader& reader,
         if (is_point_cloud2_type(t.type) && t.message_count > 0) clouds.push_back(t);
     }
     if (clouds.empty()) {
-        throw DataError(where + " has no sensor_msgs/PointCloud2 messages; its topics:" +
-                        listing);
+        throw DataError(where + " has no sensor_msgs/PointCloud2 messages; its topics:" + listing);
     }
     if (clouds.size() > 1) {
         throw DataError(where + " has " + std::to_string(clouds.size()) +
-                        " PointCloud2 topics: choose one with --topic NAME; its topics:" +
-                        listing);
+                        " PointCloud2 topics: choose one with --topic NAME; its topics:" + listing);
     }
     return clouds.front();
 }

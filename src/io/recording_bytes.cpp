@@ -36,8 +36,8 @@ std::string RangedFile::read(std::uint64_t offset, std::uint64_t bytes, const ch
     in_.seekg(static_cast<std::streamoff>(offset));
     in_.read(out.data(), static_cast<std::streamsize>(bytes));
     if (!in_) {
-        throw IoError("cannot read " + std::string(what) + " of " + kind_ + " '" +
-                      path_.string() + "' at byte " + std::to_string(offset));
+        throw IoError("cannot read " + std::string(what) + " of " + kind_ + " '" + path_.string() +
+                      "' at byte " + std::to_string(offset));
     }
     return out;
 }
@@ -67,9 +67,9 @@ std::string decompress_block(std::string_view compressed, const std::string& com
             throw fail("bz2 chunk too large");
         }
         unsigned int out_len = static_cast<unsigned int>(out.size());
-        const int rc = BZ2_bzBuffToBuffDecompress(
-            out.data(), &out_len, const_cast<char*>(compressed.data()),
-            static_cast<unsigned int>(compressed.size()), 0, 0);
+        const int rc =
+            BZ2_bzBuffToBuffDecompress(out.data(), &out_len, const_cast<char*>(compressed.data()),
+                                       static_cast<unsigned int>(compressed.size()), 0, 0);
         if (rc != BZ_OK) {
             throw fail("bz2 data is corrupt or truncated (libbz2 error " + std::to_string(rc) +
                        ")");

@@ -50,8 +50,7 @@ Fields parse_fields(std::string_view bytes, const fs::path& path, std::uint64_t 
 }
 
 template <class T>
-T field_value(const Fields& fields, const char* name, const fs::path& path,
-              std::uint64_t offset) {
+T field_value(const Fields& fields, const char* name, const fs::path& path, std::uint64_t offset) {
     const auto it = fields.find(name);
     if (it == fields.end() || it->second.size() != sizeof(T)) {
         throw IoError(std::string(kKind) + " '" + path.string() + "', record at byte " +
@@ -69,7 +68,8 @@ std::string field_string(const Fields& fields, const char* name, const fs::path&
     const auto it = fields.find(name);
     if (it == fields.end()) {
         throw IoError(std::string(kKind) + " '" + path.string() + "', record at byte " +
-                      std::to_string(offset) + ": field '" + name + "' is missing (corrupt record)");
+                      std::to_string(offset) + ": field '" + name +
+                      "' is missing (corrupt record)");
     }
     return it->second;
 }
@@ -215,8 +215,8 @@ class RosBag1Reader final : public RecordingReader {
         const std::string compression = field_string(r.fields, "compression", path(), pos);
         const std::uint32_t size = field_value<std::uint32_t>(r.fields, "size", path(), pos);
         const std::string data = file_.read(r.data_offset, r.data_bytes, "chunk data");
-        cached_chunk_ = recording_internal::decompress_block(data, compression, size, path(),
-                                                             kKind, pos);
+        cached_chunk_ =
+            recording_internal::decompress_block(data, compression, size, path(), kKind, pos);
         cached_chunk_pos_ = pos;
         return cached_chunk_;
     }
@@ -230,8 +230,8 @@ class RosBag1Reader final : public RecordingReader {
         connections_.emplace(id, std::move(conn));
     }
 
-    void add_message(const Record& r, std::uint64_t block, std::uint64_t offset,
-                     std::uint64_t pos) {
+    void add_message(const Record& r, std::string_view data, std::uint64_t block,
+                     std::uint64_t offset, std::uint64_t pos) {
         const std::uint32_t conn = field_value<std::uint32_t>(r.fields, "conn", path(), pos);
         const std::uint64_t time = field_value<std::uint64_t>(r.fields, "time", path(), pos);
         RecordingMessage m;
@@ -240,6 +240,8 @@ class RosBag1Reader final : public RecordingReader {
                         static_cast<std::int64_t>(time >> 32);
         m.block = block;
         m.offset = offset;
+        m.head_bytes = static_cast<std::uint8_t>(std::min(data.size(), m.head.size()));
+        if (m.head_bytes > 0) std::memcpy(m.head.data(), data.data(), m.head_bytes);
         messages_[conn].push_back(m);
     }
 
@@ -255,18 +257,20 @@ class RosBag1Reader final : public RecordingReader {
                     break;
                 case kOpChunk: {
                     const std::string& chunk = load_chunk(pos);
-                    ByteCursor c(chunk, path(), kKind + std::string(" chunk at byte ") +
-                                                    std::to_string(pos) + ",",
+                    ByteCursor c(chunk, path(),
+                                 kKind + std::string(" chunk at byte ") + std::to_string(pos) + ",",
                                  0);
                     while (!c.at_end()) {
                         const std::uint64_t inner = c.position();
                         const Record in = next_record(c, path(), 0);
                         if (in.op == kOpConnection) {
-                            add_connection(in, std::string_view(chunk).substr(in.data_offset,
-                                                                              in.data_bytes),
-                                           pos);
+                            add_connection(
+                                in, std::string_view(chunk).substr(in.data_offset, in.data_bytes),
+                                pos);
                         } else if (in.op == kOpMessage) {
-                            add_message(in, pos, inner, pos);
+                            add_message(
+                                in, std::string_view(chunk).substr(in.data_offset, in.data_bytes),
+                                pos, inner, pos);
                         } else {
                             c.fail("unexpected record type " + std::to_string(in.op) +
                                    " inside a chunk (corrupt chunk)");
@@ -275,11 +279,10 @@ class RosBag1Reader final : public RecordingReader {
                     break;
                 }
                 case kOpConnection:
-                    add_connection(r, file_.read(r.data_offset, r.data_bytes, "connection"),
-                                   pos);
+                    add_connection(r, file_.read(r.data_offset, r.data_bytes, "connection"), pos);
                     break;
                 case kOpMessage:
-                    add_message(r, kNoChunk, pos, pos);
+                    add_message(r, {}, kNoChunk, pos, pos);
                     break;
                 case kOpIndexData:
                 case kOpChunkInfo:
@@ -297,8 +300,9 @@ class RosBag1Reader final : public RecordingReader {
         }
         for (const auto& [id, list] : messages_) {
             if (connections_.find(id) == connections_.end()) {
-                throw IoError(std::string(kKind) + " '" + path().string() + "': messages of connection " +
-                              std::to_string(id) + " have no connection record (corrupt file)");
+                throw IoError(std::string(kKind) + " '" + path().string() +
+                              "': messages of connection " + std::to_string(id) +
+                              " have no connection record (corrupt file)");
             }
         }
     }

@@ -41,8 +41,8 @@ class Statement {
         return t ? reinterpret_cast<const char*>(t) : "";
     }
     [[noreturn]] void fail(const char* what) const {
-        throw IoError(std::string(kKind) + " '" + path_.string() + "': " + what + " failed: " +
-                      sqlite3_errmsg(db_) +
+        throw IoError(std::string(kKind) + " '" + path_.string() + "': " + what +
+                      " failed: " + sqlite3_errmsg(db_) +
                       " (is it a rosbag2 .db3 file with tables topics and messages?)");
     }
 
@@ -81,10 +81,10 @@ class Rosbag2SqliteReader final : public RecordingReader {
             }
         }
         // immutable=1: no locks, no journal, the file is never written.
-        const std::string uri = "file:" + uri_escape(fs::absolute(path).string()) +
-                                "?mode=ro&immutable=1";
-        const int rc = sqlite3_open_v2(uri.c_str(), &db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI,
-                                       nullptr);
+        const std::string uri =
+            "file:" + uri_escape(fs::absolute(path).string()) + "?mode=ro&immutable=1";
+        const int rc =
+            sqlite3_open_v2(uri.c_str(), &db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, nullptr);
         if (rc != SQLITE_OK) {
             const std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
             sqlite3_close(db_);
@@ -142,8 +142,8 @@ class Rosbag2SqliteReader final : public RecordingReader {
 
     std::string read(const RecordingMessage& m) override {
         if (!read_) {
-            read_ = std::make_unique<Statement>(db_, "SELECT data FROM messages WHERE id = ?1",
-                                                path());
+            read_ =
+                std::make_unique<Statement>(db_, "SELECT data FROM messages WHERE id = ?1", path());
         }
         read_->reset();
         sqlite3_bind_int64(read_->get(), 1, static_cast<sqlite3_int64>(m.offset));

@@ -119,8 +119,8 @@ std::vector<std::size_t> select_frames(std::size_t count, const ScanSequenceOpti
     }
     if (options.first_frame < 0 || options.first_frame >= n) {
         throw ConfigError("first_frame " + std::to_string(options.first_frame) +
-                          " is outside the sequence '" + what + "' of " + std::to_string(n) +
-                          " " + unit + " (valid: 0.." + std::to_string(n - 1) + ")");
+                          " is outside the sequence '" + what + "' of " + std::to_string(n) + " " +
+                          unit + " (valid: 0.." + std::to_string(n - 1) + ")");
     }
     if (options.last_frame < -1 || options.last_frame >= n ||
         (options.last_frame != -1 && options.last_frame < options.first_frame)) {
@@ -143,7 +143,7 @@ std::vector<std::size_t> select_frames(std::size_t count, const ScanSequenceOpti
 struct ScanSequence::RecordingState {
     std::unique_ptr<RecordingReader> reader;
     RecordingTopic topic;
-    std::vector<RecordingMessage> messages;  ///< the selected messages, in scan order
+    std::vector<RecordingMessage> messages;    ///< the selected messages, in scan order
     std::vector<std::size_t> message_numbers;  ///< their positions among the topic's messages
     std::mutex mutex;                          ///< readers keep a chunk cache
 };
@@ -158,8 +158,7 @@ ScanSequence ScanSequence::open_recording(const fs::path& path,
     RecordingReader& reader = *state->reader;
     state->topic = select_point_cloud_topic(reader, options.topic);
     const std::vector<RecordingMessage> all = reader.messages(state->topic.name);
-    const std::string name = reader.kind() + " '" + path.string() + "', topic " +
-                             state->topic.name;
+    const std::string name = reader.kind() + " '" + path.string() + "', topic " + state->topic.name;
     const std::vector<std::size_t> selected =
         select_frames(all.size(), options, path.string(), "messages");
 
@@ -171,8 +170,7 @@ ScanSequence ScanSequence::open_recording(const fs::path& path,
             "and interpolated between poses)");
     }
     if (options.pose_format != "auto" && options.pose_format != "tum") {
-        throw ConfigError("recording '" + path.string() + "': pose_format '" +
-                          options.pose_format +
+        throw ConfigError("recording '" + path.string() + "': pose_format '" + options.pose_format +
                           "' cannot be matched by time; give a TUM trajectory (pose_format tum "
                           "or auto)");
     }
@@ -209,8 +207,11 @@ ScanSequence ScanSequence::open_recording(const fs::path& path,
         state->message_numbers.push_back(selected[k]);
         progress.update(k + 1);
     }
-    progress.finish(std::to_string(selected.size()) + " messages of " +
-                    std::to_string(all.size()));
+    progress.finish(std::to_string(selected.size()) + " messages of " + std::to_string(all.size()));
+    // The first message decoded in full, so that a cloud without x/y/z, a big-endian cloud or
+    // another layout problem stops the run before any output is written.
+    decode_point_cloud2(reader.read(state->messages.front()), state->topic.encoding,
+                        name + ", message " + std::to_string(state->message_numbers.front()));
     seq.recording_ = std::move(state);
     return seq;
 }

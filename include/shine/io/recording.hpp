@@ -9,6 +9,7 @@
 //   - a directory with metadata.yaml: a ROS 2 bag whose relative_file_paths are read in order.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -37,6 +38,10 @@ struct RecordingMessage {
     std::uint64_t block = 0;   ///< ROS 1 / MCAP: chunk file offset; SQLite: file number
     std::uint64_t offset = 0;  ///< ROS 1 / MCAP: offset in the chunk; SQLite: row id
     std::uint32_t file = 0;    ///< which file of a ROS 2 bag of several files
+    /// The message's first bytes when the reader saw them while indexing (ROS 1, MCAP: the
+    /// header stamp is there), so that stamps need no second pass over compressed chunks.
+    std::array<char, 16> head{};
+    std::uint8_t head_bytes = 0;
 };
 
 /// A recording opened for indexed, one-message-at-a-time reading.
@@ -56,7 +61,7 @@ class RecordingReader {
     /// At least the first `bytes` bytes of a message (all of it if shorter); readers that can read
     /// a prefix without the rest (SQLite) do.
     virtual std::string read_prefix(const RecordingMessage& message, std::size_t bytes) {
-        (void)bytes;
+        if (bytes <= message.head_bytes) return std::string(message.head.data(), bytes);
         return read(message);
     }
 

@@ -15,8 +15,10 @@
 // messages in time order. Poses come from a TUM file (`poses_path`, required) matched by time:
 // each scan's header stamp is interpolated between the two poses around it (translation linear,
 // rotation slerp; a stamp equal to a pose's gives that pose exactly); a stamp outside the pose
-// file's time span is a DataError naming the stamp. Only the message index is kept in memory;
-// each load() reads and decodes one message.
+// file's time span is a DataError naming the stamp. Only the message index is kept in memory
+// (about 50 bytes a message); each load() reads and decodes one message. Opening reads every
+// selected message's stamp: ROS 1 and MCAP readers keep each message's first bytes while
+// indexing, SQLite reads just those bytes.
 #pragma once
 
 #include <Eigen/Core>
