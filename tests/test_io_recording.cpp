@@ -226,6 +226,18 @@ TEST_F(Recordings, WithoutPosesTheMessageAsksForAPoseFile) {
     }
 }
 
+TEST_F(Recordings, KittiPosesHaveNoTimesAndAreRefused) {
+    ScanSequenceOptions options;
+    options.poses_path = root_ / "kitti" / "poses.txt";
+    try {
+        ScanSequence::open(rec("street.bag"), options);
+        FAIL() << "expected ConfigError";
+    } catch (const ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("give a TUM trajectory"), std::string::npos)
+            << e.what();
+    }
+}
+
 TEST_F(Recordings, ScanOutsideThePoseSpanIsAnErrorNamingTheStamp) {
     // The first 3 poses only: scans 3..5 are after the trajectory.
     const std::string text = read_all(rec("poses.tum"));

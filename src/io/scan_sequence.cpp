@@ -26,7 +26,8 @@ namespace {
 constexpr const char* kExpectedLayout =
     "expected either the KITTI odometry layout (velodyne/NNNNNN.bin, poses.txt, optional "
     "calib.txt) or a folder of .ply/.pcd scans (in the directory or its scans/ subfolder) with "
-    "poses.txt (KITTI format) or poses_tum.txt / *.tum (TUM format)";
+    "poses.txt (KITTI format) or poses_tum.txt / *.tum (TUM format), or a recording (a ROS 1 "
+    ".bag, an .mcap or .db3 file, or a ROS 2 bag folder with metadata.yaml)";
 
 std::string lower_extension(const fs::path& p) {
     std::string ext = p.extension().string();

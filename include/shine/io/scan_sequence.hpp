@@ -42,7 +42,6 @@ struct Scan {
     std::vector<double> point_time_s;
 };
 
-
 /// How to open a sequence; every member has a sensible default.
 struct ScanSequenceOptions {
     std::filesystem::path poses_path;  ///< empty: found in the directory
@@ -87,7 +86,7 @@ class ScanSequence {
     std::filesystem::path dir_;
     std::vector<std::filesystem::path> scan_paths_;
     std::vector<Eigen::Isometry3d> poses_;
-    std::vector<double> stamps_s_;              ///< recordings only
+    std::vector<double> stamps_s_;               ///< recordings only
     std::shared_ptr<RecordingState> recording_;  ///< recordings only
 };
 
