@@ -141,6 +141,17 @@ TEST_F(CliRecordings, BrokenRecordingsFailNamingTheFileWithoutOutput) {
     }
     expect_failure("map '" + rec("street.bag").string() + "' -o '" + out.string() + "'", out,
                    "--poses FILE");
+    // A message cut short deep in the recording (the first one is fine, so opening succeeds):
+    // the run stops naming the message and leaves no output directory behind.
+    const fs::path damaged = dir_ / "damaged_db3";
+    fs::copy(rec("street_db3"), damaged);
+    const std::string cut = "/usr/bin/python3 -c \"import sqlite3; db = sqlite3.connect('" +
+                            (damaged / "street_db3_0.db3").string() +
+                            "'); db.execute('UPDATE messages SET data = substr(data, 1, 200) "
+                            "WHERE id = 4'); db.commit()\"";
+    ASSERT_EQ(std::system(cut.c_str()), 0);
+    expect_failure("map '" + damaged.string() + "' -o '" + out.string() + "' " + poses(), out,
+                   "topic /points, message 3");
 }
 
 }  // namespace
