@@ -4,6 +4,7 @@
 // with the same poses; `shine convert` gives the KITTI folder back; broken recordings end with a
 // message naming the file, a non-zero exit and no output.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdlib>
 
@@ -23,7 +24,8 @@ class CliRecordings : public ::testing::Test {
                          "/usr/bin/python3 -c 'import rosbag, sensor_msgs, lz4, "
                          "zstandard' >/dev/null 2>&1") == 0;
         if (!available_) return;
-        root_ = fs::path(SHINE_TEST_TMP_DIR) / "cli_recordings";
+        // ctest runs every test in its own process, in parallel: one fixture folder per process.
+        root_ = fs::path(SHINE_TEST_TMP_DIR) / ("cli_recordings_" + std::to_string(::getpid()));
         fs::remove_all(root_);
         fs::create_directories(root_);
         const CliResult sim = run_shine("simulate -o '" + (root_ / "street").string() +
@@ -40,6 +42,11 @@ class CliRecordings : public ::testing::Test {
         if (std::system(command.c_str()) != 0) setup_error_ = read_text(root_ / "writer.log");
     }
 
+    static void TearDownTestSuite() {
+        std::error_code ec;
+        if (!root_.empty()) fs::remove_all(root_, ec);
+    }
+
     void SetUp() override {
         if (!available_) {
             GTEST_SKIP() << "python3-rosbag, python3-sensor-msgs, python3-lz4 or "
@@ -47,6 +54,8 @@ class CliRecordings : public ::testing::Test {
         }
         ASSERT_TRUE(setup_error_.empty()) << setup_error_;
         dir_ = test_dir_of("cli_recordings");
+        fs::remove_all(dir_);  // outputs of an earlier run would make the commands refuse
+        fs::create_directories(dir_);
     }
 
     static fs::path rec(const std::string& name) { return root_ / "rec" / name; }

@@ -4,6 +4,7 @@
 // MCAP files by that script from the published specification; every reader must give back the
 // KITTI scans they were made from, bit for bit.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -52,7 +53,8 @@ class Recordings : public ::testing::Test {
                                 "/usr/bin/python3 -c 'import rosbag, sensor_msgs, lz4, zstandard' "
                                 ">/dev/null 2>&1") == 0;
         if (!writer_available_) return;
-        root_ = fs::path(SHINE_TEST_TMP_DIR) / "io_recording";
+        // ctest runs every test in its own process, in parallel: one fixture folder per process.
+        root_ = fs::path(SHINE_TEST_TMP_DIR) / ("io_recording_" + std::to_string(::getpid()));
         fs::remove_all(root_);
         fs::create_directories(root_ / "kitti" / "velodyne");
         std::mt19937 rng(7);
@@ -78,6 +80,11 @@ class Recordings : public ::testing::Test {
                                     (root_ / "kitti").string() + "' '" + (root_ / "rec").string() +
                                     "' > '" + (root_ / "writer.log").string() + "' 2>&1";
         writer_ok_ = std::system(command.c_str()) == 0;
+    }
+
+    static void TearDownTestSuite() {
+        std::error_code ec;
+        if (!root_.empty()) fs::remove_all(root_, ec);
     }
 
     void SetUp() override {
