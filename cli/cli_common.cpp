@@ -56,10 +56,19 @@ std::filesystem::path resolve_reference(const std::filesystem::path& data,
 
 void add_scan_selection_options(CLI::App* cmd, int& first_frame, int& last_frame, int& frame_step,
                                 std::string& poses_path) {
-    cmd->add_option("--first-frame", first_frame, "First scan index")->capture_default_str();
+    cmd->add_option("--first-frame", first_frame, "First scan (recordings: message) index")
+        ->capture_default_str();
     cmd->add_option("--last-frame", last_frame, "Last scan index, -1 = all")->capture_default_str();
     cmd->add_option("--frame-step", frame_step, "Use every n-th scan")->capture_default_str();
-    cmd->add_option("--poses", poses_path, "Pose file (default: found in DATA)");
+    cmd->add_option("--poses", poses_path,
+                    "Pose file (default: found in DATA); for a recording a TUM trajectory matched "
+                    "to the scans by time");
+}
+
+void add_topic_option(CLI::App* cmd, std::string& topic) {
+    cmd->add_option(
+        "--topic", topic,
+        "Recordings: the sensor_msgs/PointCloud2 topic to read (default: the only one)");
 }
 
 void add_evaluation_options(CLI::App* cmd, std::string& ref_path, bool& no_eval) {

@@ -35,9 +35,13 @@ std::filesystem::path resolve_data_dir(const std::string& data, bool quiet);
 std::filesystem::path resolve_reference(const std::filesystem::path& data,
                                         const std::string& ref_path, bool no_eval);
 
-/// The options that select scans of a sequence: --first-frame, --last-frame, --frame-step, --poses.
+/// The options that select scans of a sequence: --first-frame, --last-frame, --frame-step, --poses
+/// (for a recording the frames are its messages in time order).
 void add_scan_selection_options(CLI::App* cmd, int& first_frame, int& last_frame, int& frame_step,
                                 std::string& poses_path);
+
+/// --topic: the PointCloud2 topic of a recording (needed when it has several).
+void add_topic_option(CLI::App* cmd, std::string& topic);
 
 /// The evaluation options: --ref (reference mesh) and --no-eval.
 void add_evaluation_options(CLI::App* cmd, std::string& ref_path, bool& no_eval);

@@ -38,6 +38,7 @@ struct MapOptions {
     int first_frame = 0, last_frame = -1, frame_step = 1;
     int holdout_every = 0;  ///< > 0: every N-th scan is not mapped but scores the map
     std::string poses_path;
+    std::string topic;  ///< recordings: the PointCloud2 topic
     std::string ref_path;
     bool no_eval = false;
     bool quiet = false;
@@ -72,6 +73,7 @@ nlohmann::json describe_run(const MapOptions& opt, const fs::path& data,
             {"frame_step", opt.frame_step},
             {"holdout_every", opt.holdout_every},
             {"poses", opt.poses_path.empty() ? "" : fs::absolute(opt.poses_path).string()},
+            {"topic", opt.topic},
             {"ref", opt.ref_path.empty() ? "" : fs::absolute(opt.ref_path).string()},
             {"no_eval", opt.no_eval},
             {"config_yaml", config_to_yaml(config)}};
@@ -108,6 +110,7 @@ MapOptions options_from_checkpoint(const MapOptions& opt, MapperConfig& config) 
         resumed.frame_step = run.at("frame_step").get<int>();
         resumed.holdout_every = run.value("holdout_every", 0);
         resumed.poses_path = run.at("poses").get<std::string>();
+        resumed.topic = run.value("topic", std::string());
         resumed.ref_path = run.at("ref").get<std::string>();
         resumed.no_eval = run.at("no_eval").get<bool>();
         parse_config_yaml(run.at("config_yaml").get<std::string>(),
@@ -232,6 +235,7 @@ int run_map(const MapOptions& given_options) {
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
+    seq_options.topic = opt.topic;
     const ScanSequence selected = ScanSequence::open(data, seq_options);
     // With --holdout-every N the map never sees every N-th scan; they score it afterwards.
     const HoldoutSplit split = split_holdout(selected, opt.holdout_every);
@@ -243,6 +247,8 @@ int run_map(const MapOptions& given_options) {
                           "' holds an interrupted run: continue it with `shine map --resume " +
                           out.string() + "`, or delete that file to start again from scratch");
     }
+    std::error_code exists_ec;
+    const bool out_existed = fs::exists(out, exists_ec);
     ensure_directory(out);
 
     // Ctrl-C / SIGTERM finish the current step and write a checkpoint (checkpoint.hpp).
@@ -263,10 +269,18 @@ int run_map(const MapOptions& given_options) {
 
     std::optional<SequenceMap> batch_map;
     std::optional<IncrementalSequenceMap> incremental_map;
-    if (incremental) {
-        incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
-    } else {
-        batch_map = map_sequence(config, sequence, out, {}, &control);
+    try {
+        if (incremental) {
+            incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
+        } else {
+            batch_map = map_sequence(config, sequence, out, {}, &control);
+        }
+    } catch (const Error&) {
+        // A scan that cannot be read (a damaged message deep in a recording) leaves no empty
+        // output directory behind.
+        std::error_code ec;
+        if (!out_existed && fs::is_empty(out, ec)) fs::remove(out, ec);
+        throw;
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();
@@ -346,7 +360,8 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
         "map",
         "Map a scan sequence into OUT/map.vdb, OUT/surface.vdb, OUT/mesh.ply, OUT/stats.json");
     cmd->add_option("data", opt->data,
-                    "Sequence directory (KITTI layout or .ply/.pcd scans with poses); default: the "
+                    "Sequence directory (KITTI layout or .ply/.pcd scans with poses) or recording "
+                    "(ROS 1 .bag, ROS 2 bag folder, .mcap, .db3; needs --poses); default: the "
                     "bundled example street, simulated on first use");
     cmd->add_option("-o,--output", opt->out, "Output directory")->capture_default_str();
     cmd->add_option("-c,--config", opt->config_path,
@@ -366,6 +381,7 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
                     "Incremental mode: write OUT/progress/mesh_NNNNNN.ply every K frames");
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
+    add_topic_option(cmd, opt->topic);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     add_holdout_option(cmd, opt->holdout_every);
     cmd->add_flag("--half-features", opt->half_features,

@@ -32,6 +32,7 @@ struct TsdfOptions {
     int first_frame = 0, last_frame = -1, frame_step = 1;
     int holdout_every = 0;  ///< > 0: every N-th scan is not fused but scores the mesh
     std::string poses_path;
+    std::string topic;
     std::string ref_path;
     bool no_eval = false;
     bool quiet = false;
@@ -63,6 +64,7 @@ int run_tsdf(const TsdfOptions& opt) {
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
+    seq_options.topic = opt.topic;
     const ScanSequence selected = ScanSequence::open(data, seq_options);
     // With --holdout-every N every N-th scan is not fused; they score the mesh afterwards.
     const HoldoutSplit split = split_holdout(selected, opt.holdout_every);
@@ -202,6 +204,7 @@ const RegisterCommand kRegister(60, [](CLI::App& app, Action& action) {
         ->check(CLI::NonNegativeNumber);
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
+    add_topic_option(cmd, opt->topic);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     add_holdout_option(cmd, opt->holdout_every);
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");

@@ -4,7 +4,10 @@
 #
 #   scripts/run_sanitizers.sh [extra ctest arguments, e.g. -R Ply]
 #   scripts/run_sanitizers.sh --readers   (CI: only the core and io test programs, i.e. every
-#                                          reader of untrusted input; builds just what they need)
+#                                          reader of untrusted input; builds just what they need:
+#                                          test_io_recording covers the ROS 1 bag, MCAP, ROS 2
+#                                          SQLite and PointCloud2 readers on recordings written by
+#                                          python3-rosbag / sqlite3, damaged copies included)
 #
 # Left out: the Blender tests (label blender: Blender's own OpenVDB, not ours) and the few tests
 # that only repeat full mapping runs the suite already covers at a smaller size, which under the

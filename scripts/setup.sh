@@ -8,7 +8,9 @@ PACKAGES=(cmake g++ make pkg-config
           libopenvdb-dev libopenvdb-tools libboost-iostreams-dev libtbb-dev libeigen3-dev
           libimath-dev libopenexr-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
           libnanoflann-dev libgtest-dev libgmock-dev libbenchmark-dev
-          libpng-dev blender python3-distributed python3-numpy python3-yaml)
+          libpng-dev libbz2-dev zlib1g-dev liblz4-dev libzstd-dev libsqlite3-dev
+          blender python3-distributed python3-numpy python3-yaml
+          python3-rosbag python3-sensor-msgs python3-roslz4 python3-lz4 python3-zstandard)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -4,12 +4,17 @@
 #include <algorithm>
 #include <cctype>
 #include <fstream>
+#include <mutex>
 #include <string>
 
 #include "shine/core/error.hpp"
+#include "shine/core/progress.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/pcd.hpp"
 #include "shine/io/ply.hpp"
+#include "shine/io/point_cloud2.hpp"
+#include "shine/io/pose_interpolation.hpp"
+#include "shine/io/recording.hpp"
 #include "shine/io/tum.hpp"
 
 namespace shine {
@@ -21,7 +26,8 @@ namespace {
 constexpr const char* kExpectedLayout =
     "expected either the KITTI odometry layout (velodyne/NNNNNN.bin, poses.txt, optional "
     "calib.txt) or a folder of .ply/.pcd scans (in the directory or its scans/ subfolder) with "
-    "poses.txt (KITTI format) or poses_tum.txt / *.tum (TUM format)";
+    "poses.txt (KITTI format) or poses_tum.txt / *.tum (TUM format), or a recording (a ROS 1 "
+    ".bag, an .mcap or .db3 file, or a ROS 2 bag folder with metadata.yaml)";
 
 std::string lower_extension(const fs::path& p) {
     std::string ext = p.extension().string();
@@ -104,12 +110,117 @@ std::string detect_pose_format(const fs::path& path) {
     return "kitti";  // empty file: the KITTI reader reports it
 }
 
+/// The indices selected by first_frame / last_frame / frame_step out of `n` scans or messages;
+/// `what` names the sequence in messages.
+std::vector<std::size_t> select_frames(std::size_t count, const ScanSequenceOptions& options,
+                                       const std::string& what, const char* unit) {
+    const int n = static_cast<int>(count);
+    if (options.frame_step < 1) {
+        throw ConfigError("frame_step " + std::to_string(options.frame_step) + " must be >= 1");
+    }
+    if (options.first_frame < 0 || options.first_frame >= n) {
+        throw ConfigError("first_frame " + std::to_string(options.first_frame) +
+                          " is outside the sequence '" + what + "' of " + std::to_string(n) + " " +
+                          unit + " (valid: 0.." + std::to_string(n - 1) + ")");
+    }
+    if (options.last_frame < -1 || options.last_frame >= n ||
+        (options.last_frame != -1 && options.last_frame < options.first_frame)) {
+        throw ConfigError("last_frame " + std::to_string(options.last_frame) +
+                          " must be -1 (all) or between first_frame " +
+                          std::to_string(options.first_frame) + " and " + std::to_string(n - 1) +
+                          " for the sequence '" + what + "'");
+    }
+    const int last = options.last_frame == -1 ? n - 1 : options.last_frame;
+    std::vector<std::size_t> selected;
+    for (int i = options.first_frame; i <= last; i += options.frame_step) {
+        selected.push_back(static_cast<std::size_t>(i));
+    }
+    return selected;
+}
+
 }  // namespace
 }  // namespace scan_sequence_internal
+
+struct ScanSequence::RecordingState {
+    std::unique_ptr<RecordingReader> reader;
+    RecordingTopic topic;
+    std::vector<RecordingMessage> messages;    ///< the selected messages, in scan order
+    std::vector<std::size_t> message_numbers;  ///< their positions among the topic's messages
+    std::mutex mutex;                          ///< readers keep a chunk cache
+};
+
+bool ScanSequence::is_recording(const fs::path& path) { return is_recording_path(path); }
+
+ScanSequence ScanSequence::open_recording(const fs::path& path,
+                                          const ScanSequenceOptions& options) {
+    using namespace scan_sequence_internal;
+    auto state = std::make_shared<RecordingState>();
+    state->reader = shine::open_recording(path);
+    RecordingReader& reader = *state->reader;
+    state->topic = select_point_cloud_topic(reader, options.topic);
+    const std::vector<RecordingMessage> all = reader.messages(state->topic.name);
+    const std::string name = reader.kind() + " '" + path.string() + "', topic " + state->topic.name;
+    const std::vector<std::size_t> selected =
+        select_frames(all.size(), options, path.string(), "messages");
+
+    if (options.poses_path.empty()) {
+        throw ConfigError(
+            "recording '" + path.string() +
+            "' carries no poses ShineVDB can use yet: pass a TUM trajectory with --poses FILE "
+            "(lines 't x y z qx qy qz qw'; t in seconds, matched to each scan's header stamp "
+            "and interpolated between poses)");
+    }
+    if (options.pose_format != "auto" && options.pose_format != "tum") {
+        throw ConfigError("recording '" + path.string() + "': pose_format '" + options.pose_format +
+                          "' cannot be matched by time; give a TUM trajectory (pose_format tum "
+                          "or auto)");
+    }
+    if (options.pose_format == "auto" && fs::exists(options.poses_path) &&
+        detect_pose_format(options.poses_path) != "tum") {
+        throw ConfigError("pose file '" + options.poses_path.string() +
+                          "' looks like KITTI poses (12 numbers a line, no timestamps); a "
+                          "recording's scans are matched to poses by time: give a TUM "
+                          "trajectory (t x y z qx qy qz qw)");
+    }
+    const std::vector<StampedPose> poses = read_tum_poses(options.poses_path);
+    check_pose_times(poses, options.poses_path.string());
+    Eigen::Isometry3d calib = Eigen::Isometry3d::Identity();
+    const bool calibrated = !options.calib_path.empty();
+    if (calibrated) calib = read_kitti_calib_tr(options.calib_path);
+
+    ScanSequence seq;
+    seq.dir_ = path;
+    // The header stamps decide the poses; reading them is one pass over the selected messages
+    // (for SQLite only their first bytes), one message in memory at a time.
+    Progress progress("index " + state->topic.name, selected.size());
+    constexpr std::size_t kStampPrefixBytes = 16;
+    for (std::size_t k = 0; k < selected.size(); ++k) {
+        const RecordingMessage& m = all[selected[k]];
+        const std::string where = name + ", message " + std::to_string(selected[k]);
+        const double stamp_s = decode_header_stamp_s(reader.read_prefix(m, kStampPrefixBytes),
+                                                     state->topic.encoding, where);
+        Eigen::Isometry3d T = interpolate_pose(poses, stamp_s, options.poses_path.string());
+        if (calibrated) T = calib.inverse() * T * calib;
+        seq.poses_.push_back(T);
+        seq.stamps_s_.push_back(stamp_s);
+        seq.scan_paths_.push_back(path);
+        state->messages.push_back(m);
+        state->message_numbers.push_back(selected[k]);
+        progress.update(k + 1);
+    }
+    progress.finish(std::to_string(selected.size()) + " messages of " + std::to_string(all.size()));
+    // The first message decoded in full, so that a cloud without x/y/z, a big-endian cloud or
+    // another layout problem stops the run before any output is written.
+    decode_point_cloud2(reader.read(state->messages.front()), state->topic.encoding,
+                        name + ", message " + std::to_string(state->message_numbers.front()));
+    seq.recording_ = std::move(state);
+    return seq;
+}
 
 ScanSequence ScanSequence::open(const fs::path& dir, const ScanSequenceOptions& options) {
     using namespace scan_sequence_internal;
     std::error_code ec;
+    if (is_recording(dir)) return open_recording(dir, options);
     if (!fs::exists(dir, ec)) {
         throw IoError("scan directory '" + dir.string() + "' does not exist; " + kExpectedLayout);
     }
@@ -171,29 +282,11 @@ ScanSequence ScanSequence::open(const fs::path& dir, const ScanSequenceOptions& 
     }
 
     // Frame selection.
-    const int n = static_cast<int>(all_scans.size());
-    if (options.frame_step < 1) {
-        throw ConfigError("frame_step " + std::to_string(options.frame_step) + " must be >= 1");
-    }
-    if (options.first_frame < 0 || options.first_frame >= n) {
-        throw ConfigError("first_frame " + std::to_string(options.first_frame) +
-                          " is outside the sequence '" + dir.string() + "' of " +
-                          std::to_string(n) + " scans (valid: 0.." + std::to_string(n - 1) + ")");
-    }
-    if (options.last_frame < -1 || options.last_frame >= n ||
-        (options.last_frame != -1 && options.last_frame < options.first_frame)) {
-        throw ConfigError("last_frame " + std::to_string(options.last_frame) +
-                          " must be -1 (all) or between first_frame " +
-                          std::to_string(options.first_frame) + " and " + std::to_string(n - 1) +
-                          " for the sequence '" + dir.string() + "'");
-    }
-    const int last = options.last_frame == -1 ? n - 1 : options.last_frame;
-
     ScanSequence seq;
     seq.dir_ = dir;
-    for (int i = options.first_frame; i <= last; i += options.frame_step) {
-        seq.scan_paths_.push_back(all_scans[static_cast<std::size_t>(i)]);
-        seq.poses_.push_back(all_poses[static_cast<std::size_t>(i)]);
+    for (std::size_t i : select_frames(all_scans.size(), options, dir.string(), "scans")) {
+        seq.scan_paths_.push_back(all_scans[i]);
+        seq.poses_.push_back(all_poses[i]);
     }
     return seq;
 }
@@ -203,6 +296,23 @@ Scan ScanSequence::load(std::size_t i) const {
     Scan scan;
     scan.source = scan_paths_.at(i);
     scan.T_world_sensor = poses_.at(i);
+    if (recording_) {
+        RecordingState& state = *recording_;
+        const std::size_t m = recording_index_.empty() ? i : recording_index_.at(i);
+        const std::string where = state.reader->kind() + " '" + dir_.string() + "', topic " +
+                                  state.topic.name + ", message " +
+                                  std::to_string(state.message_numbers.at(m));
+        std::string bytes;
+        {
+            const std::lock_guard<std::mutex> lock(state.mutex);
+            bytes = state.reader->read(state.messages.at(m));
+        }
+        PointCloud2Scan cloud = decode_point_cloud2(bytes, state.topic.encoding, where);
+        scan.points_sensor = std::move(cloud.points_sensor);
+        scan.point_time_s = std::move(cloud.point_time_s);
+        scan.stamp_s = stamps_s_.at(i);
+        return scan;
+    }
     const std::string ext = lower_extension(scan.source);
     if (ext == ".bin") {
         scan.points_sensor = read_kitti_bin(scan.source);
@@ -219,6 +329,7 @@ Scan ScanSequence::load(std::size_t i) const {
 ScanSequence ScanSequence::subset(const std::vector<std::size_t>& indices) const {
     ScanSequence part;
     part.dir_ = dir_;
+    part.recording_ = recording_;  // shared: the parts read through one reader, under its lock
     for (const std::size_t i : indices) {
         if (i >= scan_paths_.size()) {
             throw ConfigError("scan " + std::to_string(i) + " is outside the sequence '" +
@@ -227,6 +338,10 @@ ScanSequence ScanSequence::subset(const std::vector<std::size_t>& indices) const
         }
         part.scan_paths_.push_back(scan_paths_[i]);
         part.poses_.push_back(poses_[i]);
+        if (i < stamps_s_.size()) part.stamps_s_.push_back(stamps_s_[i]);
+        if (recording_) {
+            part.recording_index_.push_back(recording_index_.empty() ? i : recording_index_[i]);
+        }
     }
     return part;
 }

@@ -8,11 +8,23 @@
 // Scans are sorted by file name (numerically when names are plain numbers) and matched to poses
 // by index; TUM timestamps are not used for matching. DIR/calib.txt is applied to KITTI-format
 // poses only; an explicit calib_path is applied to either format.
+//
+// Recordings (recording.hpp): a ROS 1 bag (.bag), a ROS 2 bag folder (metadata.yaml with .db3 or
+// .mcap files), or a bare .db3 / .mcap file. One sensor_msgs/PointCloud2 topic is read (found
+// automatically when it is the only one, else named by `topic`); the frame range selects
+// messages in time order. Poses come from a TUM file (`poses_path`, required) matched by time:
+// each scan's header stamp is interpolated between the two poses around it (translation linear,
+// rotation slerp; a stamp equal to a pose's gives that pose exactly); a stamp outside the pose
+// file's time span is a DataError naming the stamp. Only the message index is kept in memory
+// (about 50 bytes a message); each load() reads and decodes one message. Opening reads every
+// selected message's stamp: ROS 1 and MCAP readers keep each message's first bytes while
+// indexing, SQLite reads just those bytes.
 #pragma once
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -23,6 +35,11 @@ struct Scan {
     std::vector<Eigen::Vector3f> points_sensor;
     Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
     std::filesystem::path source;
+    /// Acquisition time of the scan in seconds (a recording's header stamp; 0 for files).
+    double stamp_s = 0.0;
+    /// Per-point time in seconds relative to stamp_s, one per point of points_sensor; empty when
+    /// the scan carries no per-point time (KITTI, PLY, PCD, a PointCloud2 without a time field).
+    std::vector<double> point_time_s;
 };
 
 /// How to open a sequence; every member has a sensible default.
@@ -33,6 +50,7 @@ struct ScanSequenceOptions {
     int first_frame = 0;               ///< first scan index used
     int last_frame = -1;               ///< last scan index used (inclusive), -1 = all
     int frame_step = 1;                ///< use every n-th scan
+    std::string topic;                 ///< recordings: the PointCloud2 topic; empty: the only one
 };
 
 /// Lazily loaded scan sequence. Opening validates the layout and the pose count; scans are read
@@ -45,11 +63,18 @@ class ScanSequence {
     static ScanSequence open(const std::filesystem::path& dir,
                              const ScanSequenceOptions& options = {});
 
+    /// Whether `path` is read as a recording rather than a folder of scan files.
+    static bool is_recording(const std::filesystem::path& path);
+
     std::size_t size() const { return scan_paths_.size(); }
     /// T_world_sensor of scan i (calibration applied).
     const Eigen::Isometry3d& pose(std::size_t i) const { return poses_.at(i); }
     const std::filesystem::path& scan_path(std::size_t i) const { return scan_paths_.at(i); }
     const std::filesystem::path& directory() const { return dir_; }
+    /// Acquisition time of scan i in seconds (recordings: header stamp; files: 0).
+    double stamp_s(std::size_t i) const { return stamps_s_.empty() ? 0.0 : stamps_s_.at(i); }
+    /// Whether the scans come from a recording (bag / MCAP / SQLite) rather than files.
+    bool from_recording() const { return recording_ != nullptr; }
     /// Reads scan i from disk (points as stored; filtering is preprocess_scan's job).
     Scan load(std::size_t i) const;
 
@@ -58,9 +83,18 @@ class ScanSequence {
     ScanSequence subset(const std::vector<std::size_t>& indices) const;
 
   private:
+    struct RecordingState;  ///< the open recording, its selected messages and a lock
+    static ScanSequence open_recording(const std::filesystem::path& path,
+                                       const ScanSequenceOptions& options);
+
     std::filesystem::path dir_;
     std::vector<std::filesystem::path> scan_paths_;
     std::vector<Eigen::Isometry3d> poses_;
+    std::vector<double> stamps_s_;               ///< recordings only
+    std::shared_ptr<RecordingState> recording_;  ///< recordings only
+    /// Recordings only, after subset(): scan i is the recording's selected message
+    /// recording_index_[i] (empty: message i).
+    std::vector<std::size_t> recording_index_;
 };
 
 }  // namespace shine
