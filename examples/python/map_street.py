@@ -87,6 +87,7 @@ def main() -> None:
         values = [results[n][key] * scale for n in names]
         bars = ax.bar(range(len(names)), values, color=colors)
         ax.bar_label(bars, fmt="%.2f" if key != "fscore" else "%.1f")
+        ax.set_ylim(0, 1.15 * max(values))
         ax.set_xticks(range(len(names)), [n.replace(" ", "\n", 1) for n in names])
         ax.set_title(title)
     fig.suptitle(f"{args.data.name}: neural map (leaf {args.leaf_size_m} m) vs TSDF "
