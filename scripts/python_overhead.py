@@ -6,11 +6,14 @@
 Alternates `build/shine map DATA -o OUT --threads N -q` and a Python process doing the same work
 through shinevdb (read_sequence -> NeuralMap.add_scan -> train -> write_products -> evaluate
 against gt_mesh.ply, as `shine map` evaluates), each in a fresh process (interpreter start-up and
-import included), and prints every run, the medians and the overhead. It also checks that both
-wrote the same mesh.ply, byte for byte.
+import included), and prints every run's wall-clock and CPU seconds (user + system of the child
+process), their medians and the overheads. On a machine shared with other jobs the wall-clock
+time mostly measures the others' load; the CPU time is the work each process did. It also checks
+that both wrote the same mesh.ply, byte for byte.
 """
 
 import argparse
+import os
 import pathlib
 import statistics
 import subprocess
@@ -34,10 +37,16 @@ print(f"F-score {100 * metrics['fscore']:.2f} %")
 """
 
 
-def timed(cmd) -> float:
+def timed(cmd):
+    """(wall-clock seconds, CPU seconds) of running `cmd`."""
     start = time.monotonic()
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.monotonic() - start
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.monotonic() - start
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise subprocess.CalledProcessError(proc.returncode, cmd)
+    return wall, usage.ru_utime + usage.ru_stime
 
 
 def main() -> None:
@@ -59,12 +68,18 @@ def main() -> None:
             order = [("cli", cli_cmd, cli_s), ("python", py_cmd, py_s)]
             for name, cmd, times in order if run % 2 == 0 else order[::-1]:
                 times.append(timed(cmd))
-                print(f"run {run + 1} {name:6s} {times[-1]:7.2f} s", flush=True)
+                print(f"run {run + 1} {name:6s} wall {times[-1][0]:7.2f} s  "
+                      f"cpu {times[-1][1]:7.2f} s", flush=True)
         same = (out_cli / "mesh.ply").read_bytes() == (out_py / "mesh.ply").read_bytes()
-    cli_med, py_med = statistics.median(cli_s), statistics.median(py_s)
-    print(f"median cli {cli_med:.2f} s, python {py_med:.2f} s, "
-          f"overhead {100 * (py_med / cli_med - 1):+.1f} % ({args.runs} runs each); "
-          f"mesh.ply identical: {same}")
+    for i, what in enumerate(("wall", "cpu")):
+        cli_med = statistics.median(t[i] for t in cli_s)
+        py_med = statistics.median(t[i] for t in py_s)
+        print(f"median {what}: cli {cli_med:.2f} s, python {py_med:.2f} s, "
+              f"overhead {100 * (py_med / cli_med - 1):+.1f} % ({args.runs} runs each)")
+    # Each run's two processes ran back to back, under about the same load: their ratio.
+    paired = statistics.median(p[0] / c[0] for c, p in zip(cli_s, py_s))
+    print(f"median of the runs' python/cli wall-clock ratios: {100 * (paired - 1):+.1f} %")
+    print(f"mesh.ply identical: {same}")
 
 
 if __name__ == "__main__":
