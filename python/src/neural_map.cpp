@@ -11,6 +11,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <sys/resource.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -340,6 +341,9 @@ class NeuralMap {
             out["origin_world_m"] =
                 std::vector<double>(sdf->origin_world_m.data(), sdf->origin_world_m.data() + 3);
         }
+        rusage usage{};
+        getrusage(RUSAGE_SELF, &usage);
+        out["peak_rss_bytes"] = static_cast<std::size_t>(usage.ru_maxrss) * 1024;  // this process
         return out;
     }
 

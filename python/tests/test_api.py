@@ -75,6 +75,7 @@ def test_mesh_and_stats(batch_map):
         stats["map"]["decoder_bytes"] == batch_map.memory_bytes
     assert stats["preprocess"]["output_points"] == stats["rays"]
     assert set(stats["seconds"]) == {"load", "allocate", "normals", "train"}
+    assert stats["peak_rss_bytes"] > batch_map.memory_bytes
 
 
 def test_float64_and_strided_input_give_the_same_map(scans, batch_map):
@@ -151,3 +152,29 @@ def test_evaluate_identical_and_tuple_forms(small_sequence, batch_map):
     assert 0.75 < metrics["fscore"] <= 1.0
     empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32))
     assert shinevdb.evaluate(empty, gt)["fscore"] == 0.0
+
+
+def write_ply(path, points):
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(points)}\n"
+              "property float x\nproperty float y\nproperty float z\nend_header\n")
+    path.write_bytes(header.encode() + points.astype("<f4").tobytes())
+
+
+def write_pcd(path, points):
+    header = ("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+              f"WIDTH {len(points)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {len(points)}\n"
+              "DATA binary\n")
+    path.write_bytes(header.encode() + points.astype("<f4").tobytes())
+
+
+@pytest.mark.parametrize("writer, suffix", [(write_ply, ".ply"), (write_pcd, ".pcd")])
+def test_read_sequence_ply_pcd_folders(small_sequence, scans, tmp_path, writer, suffix):
+    (tmp_path / "scans").mkdir()
+    for i, (points, _) in enumerate(scans[:3]):
+        writer(tmp_path / "scans" / f"{i:06d}{suffix}", points)
+    (tmp_path / "poses.txt").write_text((small_sequence / "poses.txt").read_text())
+    read = list(shinevdb.read_sequence(tmp_path))
+    assert len(read) == 3
+    for (points, pose, _), (ref_points, ref_pose) in zip(read, scans):
+        np.testing.assert_array_equal(points, ref_points)
+        np.testing.assert_array_equal(pose, ref_pose)
