@@ -215,7 +215,8 @@ shine::TriangleMesh mesh_from_python(const py::handle& obj, const char* name) {
 
     const std::string tname = std::string(name) + "[1] (triangles)";
     const py::array t = py::array::ensure(parts[1]);
-    if (!t || t.ndim() != 2 || t.shape(1) != 3 || t.dtype().kind() != 'i') {
+    if (!t || t.ndim() != 2 || t.shape(1) != 3 ||
+        (t.dtype().kind() != 'i' && t.dtype().kind() != 'u')) {
         PyErr_Clear();
         fail(tname + " must be an integer array of shape (T, 3)");
     }

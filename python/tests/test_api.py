@@ -178,3 +178,9 @@ def test_read_sequence_ply_pcd_folders(small_sequence, scans, tmp_path, writer, 
     for (points, pose, _), (ref_points, ref_pose) in zip(read, scans):
         np.testing.assert_array_equal(points, ref_points)
         np.testing.assert_array_equal(pose, ref_pose)
+
+
+def test_evaluate_accepts_unsigned_triangles(batch_map):
+    vertices, triangles = batch_map.extract_triangle_mesh()
+    as_unsigned = shinevdb.evaluate((vertices, triangles.astype(np.uint32)), (vertices, triangles))
+    assert as_unsigned["fscore"] == 1.0
