@@ -7,7 +7,8 @@
 // steps: it takes the GIL for a moment, runs the handlers and, if one raised, keeps the exception
 // and asks the loop to stop; the binding then raises it once the loop has returned and the GIL is
 // held again. Loops that cannot pause (one incremental scan, a bake) are short and are followed
-// by a poll. shine::request_stop() (core/stop_request.hpp) stops the same loops.
+// by a poll. shine::request_stop() (core/stop_request.hpp) stops the same loops, with a
+// KeyboardInterrupt too.
 #pragma once
 
 #include <pybind11/pybind11.h>
@@ -30,7 +31,11 @@ class SignalPoll {
     /// Without the GIL: true once a signal handler raised (or shine::request_stop() was called).
     /// Takes the GIL at most every kInterval, so a tight loop does not contend for it.
     bool operator()() {
-        if (error_ || shine::stop_requested()) return true;
+        if (error_) return true;
+        if (shine::stop_requested()) {
+            stop_requested_ = true;
+            return true;
+        }
         const auto now = std::chrono::steady_clock::now();
         if (now - last_ < kInterval) return false;
         last_ = now;
@@ -39,18 +44,26 @@ class SignalPoll {
         return error_.has_value();
     }
 
-    /// With the GIL: raises the exception a handler raised, if any.
+    /// With the GIL: raises the exception a handler raised, if any, or KeyboardInterrupt for a
+    /// shine::request_stop() (whose request it then clears, so that the next call runs).
     void rethrow() {
         if (error_) {
             py::error_already_set error = std::move(*error_);
             error_.reset();
             throw error;
         }
+        if (stop_requested_) {
+            stop_requested_ = false;
+            shine::clear_stop_request();
+            PyErr_SetString(PyExc_KeyboardInterrupt, "stopped by shine::request_stop()");
+            throw py::error_already_set();
+        }
     }
 
   private:
     static constexpr std::chrono::milliseconds kInterval{20};
     std::optional<py::error_already_set> error_;
+    bool stop_requested_ = false;
     std::chrono::steady_clock::time_point last_{};
 };
 
