@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Installs ShineVDB's Debian 12 dependencies (when missing) and builds it in Release into build/.
-# Run as root (or with sudo available) on Debian 12.
+# Installs ShineVDB's Debian 12 dependencies (when missing), builds it in Release into build/ and
+# makes the Python module importable by Debian's /usr/bin/python3 (`import shinevdb`, through a
+# .pth file pointing at build/python). Run as root (or with sudo available) on Debian 12.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -10,7 +11,8 @@ PACKAGES=(cmake g++ make pkg-config
           libnanoflann-dev libgtest-dev libgmock-dev libbenchmark-dev
           libpng-dev libbz2-dev zlib1g-dev liblz4-dev libzstd-dev libsqlite3-dev
           blender python3-distributed python3-numpy python3-yaml
-          python3-rosbag python3-sensor-msgs python3-roslz4 python3-lz4 python3-zstandard)
+          python3-rosbag python3-sensor-msgs python3-roslz4 python3-lz4 python3-zstandard
+          python3-dev pybind11-dev python3-pybind11 python3-pytest python3-matplotlib)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -26,3 +28,14 @@ fi
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DSHINE_BUILD_BENCHMARKS=ON
 cmake --build build -j"$(nproc)"
+
+# `import shinevdb` for /usr/bin/python3 from any directory: a .pth file in its first site
+# directory (/usr/local/lib/python3.11/dist-packages) naming the build's package directory.
+if [ -d build/python/shinevdb ]; then
+    SUDO=""
+    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    site_dir="$(/usr/bin/python3 -c 'import site; print(site.getsitepackages()[0])')"
+    $SUDO mkdir -p "$site_dir"
+    echo "$(pwd)/build/python" | $SUDO tee "$site_dir/shinevdb.pth" >/dev/null
+    /usr/bin/python3 -c "import shinevdb" && echo "setup: import shinevdb works ($site_dir/shinevdb.pth)"
+fi

@@ -233,7 +233,7 @@ TEST(CityScene, JunctionGroundsAreHeightFieldsWithRoadOnTheirArms) {
         const TriangleMesh ground = shine::sim::make_junction_ground(route, junction);
         ASSERT_GT(ground.triangles.size(), 1000u);
         EXPECT_LE(shine::sim::max_edge_length(ground), route.street.max_edge_length_m + 1e-5);
-        const shine::sim::RayCaster caster(ground);
+        const shine::RayCaster caster(ground);
         const auto& rung = route.rungs[junction.rung];
         const auto& row = route.rows[junction.row];
         // Down-rays on a 0.37 m grid (not aligned with the cells): every one hits, at road height
@@ -304,7 +304,7 @@ TEST(CityScene, BlocksCastExactlyLikeOneBvh) {
     const TriangleMesh& mesh = s.city.scene.mesh;
     ASSERT_EQ(s.city.blocks.size(), s.route.segments.size() + s.route.junctions.size());
     EXPECT_EQ(s.caster.num_triangles(), mesh.triangles.size());
-    const shine::sim::RayCaster whole(mesh);
+    const shine::RayCaster whole(mesh);
     // Scans from poses along the route, against the blocks near the sensor and against one BVH.
     shine::sim::LidarConfig lidar;
     lidar.num_beams = 16;
@@ -444,7 +444,7 @@ TEST(RouteSimulation, ShortRouteWritesAConsistentSequence) {
     EXPECT_EQ(observed, summary.num_observed_triangles);
     EXPECT_GT(observed, 50000u);
     // Without noise every point is the first surface along its ray, and its triangle is observed.
-    const shine::sim::RayCaster caster(mesh);
+    const shine::RayCaster caster(mesh);
     std::size_t total = 0;
     for (std::size_t frame = 0; frame < poses.size(); ++frame) {
         char name[32];
@@ -470,7 +470,7 @@ TEST(RouteSimulation, ShortRouteWritesAConsistentSequence) {
     EXPECT_NE(json.str().find("\"streets\": ["), std::string::npos);
 
     // A full 64-beam scan of the route has as many points as the street's (~113 k per scan).
-    const auto full = shine::sim::simulate_scan(shine::sim::RayCaster(mesh),
+    const auto full = shine::sim::simulate_scan(shine::RayCaster(mesh),
                                                 shine::sim::LidarConfig(), poses[40], 1);
     EXPECT_GT(full.points_sensor.size(), 90000u);
 }
