@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "shine/core/error.hpp"
 #include "shine/model/decoder.hpp"
 #include "shine/model/interpolation.hpp"
 #include "shine/model/neural_sdf.hpp"
@@ -26,26 +27,43 @@ void expect_close(double analytic, double numeric, const std::string& what) {
 }  // namespace
 
 TEST(Interpolation, WeightsSumToOneAndGradientsMatchFiniteDifferences) {
-    const float cell_m = 0.2f;
-    const float t[3] = {0.3f, 0.71f, 0.45f};
-    float w[8], dw[8][3];
-    corner_weights_and_gradients(t, cell_m, w, dw);
-    double sum = 0.0;
-    for (float v : w) sum += v;
-    EXPECT_NEAR(sum, 1.0, 1e-6);
-    for (int a = 0; a < 3; ++a) {
-        float tp[3] = {t[0], t[1], t[2]}, tm[3] = {t[0], t[1], t[2]};
-        const float h_m = 1e-4f;
-        tp[a] += h_m / cell_m;
-        tm[a] -= h_m / cell_m;
-        float wp[8], wm[8];
-        corner_weights(tp, wp);
-        corner_weights(tm, wm);
-        for (int c = 0; c < 8; ++c) {
-            expect_close(dw[c][a], (wp[c] - wm[c]) / (2.0 * h_m),
-                         "corner " + std::to_string(c) + " axis " + std::to_string(a));
+    for (const Interpolation kind : {Interpolation::kSmoothstep, Interpolation::kLinear}) {
+        const float cell_m = 0.2f;
+        const float t[3] = {0.3f, 0.71f, 0.45f};
+        float w[8], dw[8][3];
+        corner_weights_and_gradients(t, cell_m, w, dw, kind);
+        double sum = 0.0;
+        for (float v : w) sum += v;
+        EXPECT_NEAR(sum, 1.0, 1e-6) << to_string(kind);
+        for (int a = 0; a < 3; ++a) {
+            float tp[3] = {t[0], t[1], t[2]}, tm[3] = {t[0], t[1], t[2]};
+            const float h_m = 1e-4f;
+            tp[a] += h_m / cell_m;
+            tm[a] -= h_m / cell_m;
+            float wp[8], wm[8];
+            corner_weights(tp, wp, kind);
+            corner_weights(tm, wm, kind);
+            for (int c = 0; c < 8; ++c) {
+                expect_close(dw[c][a], (wp[c] - wm[c]) / (2.0 * h_m),
+                             std::string(to_string(kind)) + " corner " + std::to_string(c) +
+                                 " axis " + std::to_string(a));
+            }
         }
     }
+}
+
+TEST(Interpolation, LinearWeightsAreTrilinearAndKeepTheirSlopeAtCorners) {
+    const float t[3] = {0.25f, 0.5f, 1.0f};
+    float w[8], dw[8][3];
+    corner_weights_and_gradients(t, 0.5f, w, dw, Interpolation::kLinear);
+    EXPECT_FLOAT_EQ(w[0], 0.75f * 0.5f * 0.0f);
+    EXPECT_FLOAT_EQ(w[5], 0.25f * 0.5f * 1.0f);     // x high, y low, z high
+    EXPECT_FLOAT_EQ(dw[5][0], 2.0f * 0.5f * 1.0f);  // d/dx of t_x / 0.5 m
+    const float corner[3] = {0.0f, 0.0f, 0.0f};
+    corner_weights_and_gradients(corner, 1.0f, w, dw, Interpolation::kLinear);
+    EXPECT_FLOAT_EQ(dw[1][0], 1.0f);  // smoothstep's slope is 0 here
+    EXPECT_EQ(parse_interpolation("linear", "map.interpolation"), Interpolation::kLinear);
+    EXPECT_THROW(parse_interpolation("cubic", "map.interpolation"), ConfigError);
 }
 
 TEST(Interpolation, IsContinuousWithZeroSlopeAtCellFaces) {

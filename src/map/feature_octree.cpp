@@ -13,6 +13,16 @@
 #include "shine/map/feature_octree_impl.hpp"
 
 namespace shine {
+
+const char* to_string(Interpolation interpolation) {
+    return interpolation == Interpolation::kLinear ? "linear" : "smoothstep";
+}
+
+Interpolation parse_interpolation(const std::string& text, const std::string& key) {
+    if (text == "smoothstep") return Interpolation::kSmoothstep;
+    if (text == "linear") return Interpolation::kLinear;
+    throw ConfigError("key '" + key + "': expected 'smoothstep' or 'linear', got '" + text + "'");
+}
 namespace {
 
 // The 8 corner offsets of a cell, bit 0 = x, bit 1 = y, bit 2 = z.

@@ -12,15 +12,16 @@ void encode_point(CellLookup& lookup, const FeatureOctree& octree, const Eigen::
     out.has_level0 = false;
     out.level_mask = 0;
     LevelCorners cell;
+    const Interpolation kind = octree.config().interpolation;
     for (int level = 0; level < octree.num_levels(); ++level) {
         if (!lookup.find_cell(level, point_map, cell)) continue;
         const int base = out.num_corners;
         std::copy(cell.rows, cell.rows + 8, out.rows + base);
         if (with_gradients) {
             corner_weights_and_gradients(cell.t, static_cast<float>(octree.cell_size_m(level)),
-                                         out.weights + base, out.weight_gradients_per_m + base);
+                                         out.weights + base, out.weight_gradients_per_m + base, kind);
         } else {
-            corner_weights(cell.t, out.weights + base);
+            corner_weights(cell.t, out.weights + base, kind);
         }
         if (level == 0) out.has_level0 = true;
         out.level_mask |= 1u << level;

@@ -164,6 +164,7 @@ void save_neural_map(const std::filesystem::path& path, const NeuralSdf& sdf,
     meta.insertMeta("shine_num_corners",
                     openvdb::Int64Metadata(static_cast<openvdb::Int64>(octree.num_corners())));
     const FeatureTable& features = octree.features();
+    meta.insertMeta("shine_interpolation", openvdb::StringMetadata(to_string(cfg.interpolation)));
     meta.insertMeta("shine_feature_precision",
                     openvdb::StringMetadata(to_string(features.precision())));
     if (features.precision() == FeaturePrecision::kFloat16) {
@@ -240,6 +241,15 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
         try {
             cfg.feature_precision =
                 parse_feature_precision(precision->value(), "shine_feature_precision");
+        } catch (const ConfigError& e) {
+            throw IoError("'" + path.string() + "': " + e.what());
+        }
+    }
+    // Maps written before the interpolation could be chosen used smoothstep weights.
+    cfg.interpolation = Interpolation::kSmoothstep;
+    if (auto interpolation = meta->getMetadata<openvdb::StringMetadata>("shine_interpolation")) {
+        try {
+            cfg.interpolation = parse_interpolation(interpolation->value(), "shine_interpolation");
         } catch (const ConfigError& e) {
             throw IoError("'" + path.string() + "': " + e.what());
         }

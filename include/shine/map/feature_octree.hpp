@@ -23,11 +23,23 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "shine/map/feature_table.hpp"
 
 namespace shine {
+
+/// How a point's feature is interpolated from its cell's 8 corners (model/interpolation.hpp).
+enum class Interpolation : std::uint8_t {
+    kSmoothstep,  ///< weights 3t^2 - 2t^3 per axis: C1 across cells, zero slope at the corners
+    kLinear,      ///< trilinear weights t per axis: C0 across cells, no flat spots
+};
+
+/// "smoothstep" or "linear" (the YAML and file spelling).
+const char* to_string(Interpolation interpolation);
+/// Parses "smoothstep" / "linear"; throws ConfigError naming `key` otherwise.
+Interpolation parse_interpolation(const std::string& text, const std::string& key);
 
 /// Configuration of the feature hierarchy.
 struct FeatureOctreeConfig {
@@ -42,6 +54,8 @@ struct FeatureOctreeConfig {
     std::uint64_t seed = 42;  ///< initial features depend only on (seed, level, corner)
     /// Storage of the feature table (training keeps a float32 master copy of a float16 map).
     FeaturePrecision feature_precision = FeaturePrecision::kFloat32;
+    /// Interpolation of the corner features inside a cell.
+    Interpolation interpolation = Interpolation::kSmoothstep;
 };
 
 /// Corner rows and interpolation weights of one query point at one level.
