@@ -208,12 +208,13 @@ int run_render(const RenderOptions& opt) {
             PreviewLayout layout;
             layout.min_height_px = 1;
             layout.zero_level = true;
+            layout.nan_colour = {128, 128, 128};
             const std::string base = "slice_" + plane.label();
             products.push_back({out / (base + ".exr"), slice, std::nullopt});
             products.push_back(
                 {out / (base + ".png"), std::nullopt,
                  preview_scalar(slice.channel("sdf"), slice.width(), slice.height(), scale,
-                                base + " SDF (black: zero level and unobserved)", layout)});
+                                base + " SDF (black: zero level; grey: unobserved)", layout)});
         }
     }
     ensure_directory(out);

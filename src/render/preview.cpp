@@ -94,6 +94,7 @@ RgbImage preview_scalar(const std::vector<float>& values, int width, int height,
         if (std::isnan(values[i]) && !other.empty() && std::isfinite(other[i])) {
             return layout.missing_colour;
         }
+        if (std::isnan(values[i])) return layout.nan_colour;
         return scale_colour(values[i], scale);
     });
     if (layout.zero_level) {

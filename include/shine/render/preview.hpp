@@ -3,7 +3,7 @@
 //
 // Colour maps: sequential (range: dark blue - teal - yellow, near to far) and diverging (error,
 // SDF: blue for negative, white at zero, red for positive); values beyond the scale saturate.
-// Pixels without a value (NaN) are black; normals map each component from [-1, 1] to [0, 255]
+// Pixels without a value (NaN) are black unless the layout says otherwise; normals map each component from [-1, 1] to [0, 255]
 // (x red, y green, z blue: the usual normal-map colours). LiDAR images are much wider than tall,
 // so rows are repeated to make the preview at least min_height_px tall.
 #pragma once
@@ -33,6 +33,7 @@ struct PreviewLayout {
     /// Colour of pixels whose value is NaN while `other` (below) has a value: e.g. error pixels
     /// where the LiDAR saw something but the map has no surface.
     Rgb missing_colour = {0, 0, 0};
+    Rgb nan_colour = {0, 0, 0};  ///< pixels without a value
 };
 
 /// The colour of `value` on `scale` (NaN gives black).
