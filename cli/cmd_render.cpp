@@ -67,9 +67,10 @@ Inputs resolve_inputs(const fs::path& input) {
         if (fs::exists(input / "mesh.ply")) in.mesh_path = input / "mesh.ply";
         if (fs::exists(input / "map.vdb")) in.map_path = input / "map.vdb";
         if (in.mesh_path.empty() && in.map_path.empty()) {
-            throw IoError("'" + input.string() +
-                          "' holds neither mesh.ply nor map.vdb: give a `shine map` or `shine tsdf` "
-                          "output directory, a PLY mesh or a map.vdb");
+            throw IoError(
+                "'" + input.string() +
+                "' holds neither mesh.ply nor map.vdb: give a `shine map` or `shine tsdf` "
+                "output directory, a PLY mesh or a map.vdb");
         }
     } else if (!fs::exists(input)) {
         throw IoError("'" + input.string() + "' does not exist");
@@ -94,12 +95,14 @@ int run_render(const RenderOptions& opt) {
     auto thread_limit = limit_threads(opt.threads);
     const bool want_frame = !opt.scans.empty() || opt.frame >= 0;
     if (!want_frame && opt.slices.empty()) {
-        throw ConfigError("nothing to render: give --scans SEQ --frame N (images from that scan's "
-                          "pose) and/or --slice z=VALUE (an SDF slice)");
+        throw ConfigError(
+            "nothing to render: give --scans SEQ --frame N (images from that scan's "
+            "pose) and/or --slice z=VALUE (an SDF slice)");
     }
     if (want_frame && (opt.scans.empty() || opt.frame < 0)) {
-        throw ConfigError("--scans and --frame go together: the sequence and the scan whose pose "
-                          "and rays to render");
+        throw ConfigError(
+            "--scans and --frame go together: the sequence and the scan whose pose "
+            "and rays to render");
     }
     // Parse everything first.
     std::optional<PinholeCamera> camera;
@@ -120,9 +123,10 @@ int run_render(const RenderOptions& opt) {
         seq_options.poses_path = opt.poses_path;
         const ScanSequence sequence = ScanSequence::open(opt.scans, seq_options);
         if (std::size_t(opt.frame) >= sequence.size()) {
-            throw ConfigError("--frame " + std::to_string(opt.frame) + " is outside the sequence '" +
-                              sequence.directory().string() + "' of " +
-                              std::to_string(sequence.size()) + " scans (frames count from 0)");
+            throw ConfigError("--frame " + std::to_string(opt.frame) +
+                              " is outside the sequence '" + sequence.directory().string() +
+                              "' of " + std::to_string(sequence.size()) +
+                              " scans (frames count from 0)");
         }
         const TriangleMesh mesh = read_ply_mesh(inputs.mesh_path);
         if (mesh.triangles.empty()) {
@@ -136,12 +140,12 @@ int run_render(const RenderOptions& opt) {
         } else {
             const SphericalLidarModel model = infer_spherical_lidar(scan.points_sensor);
             rays = scan_pixel_rays(model, scan.points_sensor, opt.min_range_m, opt.max_range_m);
-            std::printf("LiDAR model of %s: %d rings (%.2f to %.2f deg) x %d columns, spin axis "
-                        "tilted %.2f deg from sensor z\n",
-                        scan.source.filename().c_str(), model.height(),
-                        model.elevations_rad.front() * 180.0 / M_PI,
-                        model.elevations_rad.back() * 180.0 / M_PI, model.width(),
-                        model.tilt_deg());
+            std::printf(
+                "LiDAR model of %s: %d rings (%.2f to %.2f deg) x %d columns, spin axis "
+                "tilted %.2f deg from sensor z\n",
+                scan.source.filename().c_str(), model.height(),
+                model.elevations_rad.front() * 180.0 / M_PI,
+                model.elevations_rad.back() * 180.0 / M_PI, model.width(), model.tilt_deg());
         }
         const MeshRenderer renderer(mesh);
         const ExrImage image = renderer.render(rays, scan.T_world_sensor);
@@ -170,11 +174,12 @@ int run_render(const RenderOptions& opt) {
                 abs_error.push_back(std::abs(error[i]));
                 within += std::abs(error[i]) <= 0.10;
             }
-            std::printf("pixels with a return %zu, with a map surface %.2f %%, median |error| "
-                        "%.2f cm, within 10 cm %.2f %%\n",
-                        returns, returns ? 100.0 * hits / returns : 0.0,
-                        100.0 * finite_quantile(abs_error, 0.5, 0.0),
-                        returns ? 100.0 * within / returns : 0.0);
+            std::printf(
+                "pixels with a return %zu, with a map surface %.2f %%, median |error| "
+                "%.2f cm, within 10 cm %.2f %%\n",
+                returns, returns ? 100.0 * hits / returns : 0.0,
+                100.0 * finite_quantile(abs_error, 0.5, 0.0),
+                returns ? 100.0 * within / returns : 0.0);
             ColourScale error_scale;
             error_scale.min = -kErrorScaleM;
             error_scale.max = kErrorScaleM;

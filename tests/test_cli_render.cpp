@@ -78,10 +78,10 @@ TEST_F(RenderCli, RendersASimulatedScanInItsOwn64RingProjection) {
 }
 
 TEST_F(RenderCli, PinholeCameraGivesTheRequestedSize) {
-    const CliResult r = run_shine(render((street_ / "gt_mesh.ply").string(),
-                                         "--scans '" + street_.string() +
-                                             "' --frame 0 --camera 100,100,80,60,160,120"),
-                                  dir_);
+    const CliResult r = run_shine(
+        render((street_ / "gt_mesh.ply").string(),
+               "--scans '" + street_.string() + "' --frame 0 --camera 100,100,80,60,160,120"),
+        dir_);
     ASSERT_EQ(r.exit_code, 0) << r.output;
     const ExrImage image = read_exr(dir_ / "out" / "frame_000000.exr");
     EXPECT_EQ(image.width(), 160);
@@ -125,9 +125,9 @@ TEST_F(RenderCli, BadInputEndsWithAClearMessageAndNoOutput) {
     fs::create_directories(fake_map_dir);
     fs::copy_file(mesh, fake_map_dir / "mesh.ply", fs::copy_options::overwrite_existing);
     std::ofstream(fake_map_dir / "map.vdb") << "not a vdb";
-    r = run_shine(render(fake_map_dir.string(),
-                         "--scans '" + street_.string() + "' --frame 0 --slice z=1.5"),
-                  dir_);
+    r = run_shine(
+        render(fake_map_dir.string(), "--scans '" + street_.string() + "' --frame 0 --slice z=1.5"),
+        dir_);
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.output.find("map.vdb"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(dir_ / "out"));

@@ -10,8 +10,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <limits>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <random>
 
@@ -68,8 +68,8 @@ TEST(RenderExr, RoundTripsThroughOpenExrApiBitForBit) {
         EXPECT_EQ(it.channel().type, Imf::FLOAT) << it.name();
     }
     // OpenEXR lists channels sorted by name.
-    EXPECT_EQ(names, (std::vector<std::string>{"error", "normal.X", "normal.Y", "normal.Z",
-                                               "range"}));
+    EXPECT_EQ(names,
+              (std::vector<std::string>{"error", "normal.X", "normal.Y", "normal.Z", "range"}));
     const auto* units = file.header().findTypedAttribute<Imf::StringAttribute>("shine_units");
     ASSERT_NE(units, nullptr);
     EXPECT_EQ(units->value(), "metres");

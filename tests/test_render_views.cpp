@@ -70,7 +70,8 @@ TEST(RenderLidarModel, RecoversRingsAndColumnsOfAnUprightScan) {
         int row = -1, col = -1;
         const Eigen::Vector3d d = points[i].cast<double>().normalized();
         ASSERT_TRUE(model.pixel_of(d, row, col));
-        const double angle = std::acos(std::clamp(d.dot(model.direction_sensor(row, col)), -1.0, 1.0));
+        const double angle =
+            std::acos(std::clamp(d.dot(model.direction_sensor(row, col)), -1.0, 1.0));
         EXPECT_LT(angle / kDeg, 0.5 + kAngleToleranceDeg) << "point " << i;
     }
 }
@@ -166,9 +167,8 @@ TEST(RenderMapView, LidarViewOfAPlaneGivesRangeErrorAndMisses) {
     for (int row = 0; row < 16; ++row) {
         for (int col = 0; col < 360; ++col) {
             const std::size_t i = std::size_t(row) * 360 + col;
-            ASSERT_FALSE(std::isnan(measured[i]))
-                << "every pixel has a return; row " << row << " col " << col << " tilt "
-                << model.tilt_deg();
+            ASSERT_FALSE(std::isnan(measured[i])) << "every pixel has a return; row " << row
+                                                  << " col " << col << " tilt " << model.tilt_deg();
             if (model.elevations_rad[row] < 0) {
                 ++down;
                 EXPECT_NEAR(error[i], -kShortM, kRangeToleranceM);

@@ -74,7 +74,8 @@ void write_exr(const std::filesystem::path& path, const ExrImage& image) {
             for (const std::string& name : image.channel_names()) {
                 header.channels().insert(name, Imf::Channel(Imf::FLOAT));
                 // OpenEXR only reads through the pointer while writing.
-                char* base = reinterpret_cast<char*>(const_cast<float*>(image.channel(name).data()));
+                char* base =
+                    reinterpret_cast<char*>(const_cast<float*>(image.channel(name).data()));
                 frame.insert(name, Imf::Slice(Imf::FLOAT, base, x_stride, y_stride));
             }
             Imf::OutputFile file(tmp.c_str(), header);
@@ -106,9 +107,9 @@ ExrImage read_exr(const std::filesystem::path& path) {
         const std::size_t y_stride = sizeof(float) * width;
         for (auto& [name, values] : channels) {
             // The slice's base points at pixel (0, 0) of the file's coordinates.
-            char* base = reinterpret_cast<char*>(values.data()) -
-                         (std::ptrdiff_t(window.min.x) * x_stride +
-                          std::ptrdiff_t(window.min.y) * y_stride);
+            char* base =
+                reinterpret_cast<char*>(values.data()) -
+                (std::ptrdiff_t(window.min.x) * x_stride + std::ptrdiff_t(window.min.y) * y_stride);
             frame.insert(name, Imf::Slice(Imf::FLOAT, base, x_stride, y_stride));
         }
         file.setFrameBuffer(frame);

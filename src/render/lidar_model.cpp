@@ -78,7 +78,8 @@ bool SphericalLidarModel::pixel_of(const Eigen::Vector3d& direction_sensor, int&
         }
     } else if (r == n) {
         r = n - 1;
-        if (elevations_rad[n - 1] - elevation > 0.5 * (elevations_rad[n - 2] - elevations_rad[n - 1])) {
+        if (elevations_rad[n - 1] - elevation >
+            0.5 * (elevations_rad[n - 2] - elevations_rad[n - 1])) {
             return false;
         }
     } else if (elevations_rad[r - 1] - elevation < elevation - elevations_rad[r]) {
@@ -183,9 +184,9 @@ SphericalLidarModel infer_spherical_lidar(const std::vector<Eigen::Vector3f>& po
     const double step = azimuth_gaps.empty() ? 0.0 : median(azimuth_gaps);
     model.num_columns = step > 0.0 ? static_cast<int>(std::lround(2.0 * kPi / step)) : 0;
     if (model.num_columns < 8 || model.num_columns > 32768) {
-        throw DataError("cannot infer the LiDAR's azimuth step: " +
-                        std::to_string(model.num_columns) +
-                        " columns per turn found (expected 8 to 32768)");
+        throw DataError(
+            "cannot infer the LiDAR's azimuth step: " + std::to_string(model.num_columns) +
+            " columns per turn found (expected 8 to 32768)");
     }
     return model;
 }

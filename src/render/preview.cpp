@@ -28,10 +28,10 @@ Rgb ramp(const Rgb (&stops)[N], double t) {
     return lerp(stops[k], stops[k + 1], t - double(k));
 }
 
-constexpr Rgb kSequential[] = {{48, 18, 59}, {40, 110, 190}, {30, 170, 160}, {140, 210, 80},
-                               {250, 230, 40}};
-constexpr Rgb kDiverging[] = {{30, 60, 170}, {120, 160, 230}, {255, 255, 255}, {235, 130, 100},
-                              {170, 20, 30}};
+constexpr Rgb kSequential[] = {
+    {48, 18, 59}, {40, 110, 190}, {30, 170, 160}, {140, 210, 80}, {250, 230, 40}};
+constexpr Rgb kDiverging[] = {
+    {30, 60, 170}, {120, 160, 230}, {255, 255, 255}, {235, 130, 100}, {170, 20, 30}};
 
 std::string number(double v) {
     char text[32];
@@ -79,8 +79,8 @@ double finite_quantile(const std::vector<float>& values, double q, double fallba
         if (std::isfinite(v)) finite.push_back(v);
     }
     if (finite.empty()) return fallback;
-    const std::size_t k = std::min(finite.size() - 1,
-                                   static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * finite.size()));
+    const std::size_t k = std::min(
+        finite.size() - 1, static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * finite.size()));
     std::nth_element(finite.begin(), finite.begin() + k, finite.end());
     return finite[k];
 }
@@ -146,8 +146,7 @@ RgbImage preview_normals(const std::vector<float>& nx, const std::vector<float>&
     });
     const int top = height * c.scale_y + 4;
     draw_text(image, 4, top, title, kText);
-    draw_text(image, 4, top + 18, "world normal: x red, y green, z blue; black: no surface",
-              kText);
+    draw_text(image, 4, top + 18, "world normal: x red, y green, z blue; black: no surface", kText);
     return image;
 }
 

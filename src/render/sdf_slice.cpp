@@ -24,10 +24,20 @@ SlicePlane parse_slice_plane(const std::string& text) {
     if (text.size() < 3 || text[1] != '=') throw bad();
     SlicePlane plane;
     switch (text[0]) {
-        case 'x': case 'X': plane.axis = 0; break;
-        case 'y': case 'Y': plane.axis = 1; break;
-        case 'z': case 'Z': plane.axis = 2; break;
-        default: throw bad();
+        case 'x':
+        case 'X':
+            plane.axis = 0;
+            break;
+        case 'y':
+        case 'Y':
+            plane.axis = 1;
+            break;
+        case 'z':
+        case 'Z':
+            plane.axis = 2;
+            break;
+        default:
+            throw bad();
     }
     const std::string value = text.substr(2);
     char* end = nullptr;
@@ -53,7 +63,8 @@ ExrImage slice_neural_sdf(const NeuralSdf& sdf, const SlicePlane& plane,
     }
     // The extent in the world frame: cell c covers [c, c + 1) * leaf in the map frame.
     const Eigen::Vector3d lo_world = sdf.origin_world_m + lo.cast<double>() * leaf_m;
-    const Eigen::Vector3d hi_world = sdf.origin_world_m + (hi.cast<double>().array() + 1.0).matrix() * leaf_m;
+    const Eigen::Vector3d hi_world =
+        sdf.origin_world_m + (hi.cast<double>().array() + 1.0).matrix() * leaf_m;
     const int a = plane.axis;
     if (plane.value_m < lo_world[a] || plane.value_m > hi_world[a]) {
         char extent[128];

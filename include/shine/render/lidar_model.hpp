@@ -28,11 +28,11 @@ namespace shine {
 
 /// How the beam layout is inferred; the defaults suit 16- to 128-beam spinning LiDARs.
 struct SphericalLidarConfig {
-    double min_range_m = 2.0;         ///< closer points are not used for inference
-    double min_ring_gap_deg = 0.15;   ///< sorted elevations further apart start a new ring
-    double min_ring_share = 0.2;      ///< rings with fewer points than this x the median are noise
-    double max_tilt_deg = 30.0;       ///< spin-axis search range around sensor z; 0 = sensor z
-    std::size_t max_points = 20000;   ///< points used for the axis search (an even subsample)
+    double min_range_m = 2.0;        ///< closer points are not used for inference
+    double min_ring_gap_deg = 0.15;  ///< sorted elevations further apart start a new ring
+    double min_ring_share = 0.2;     ///< rings with fewer points than this x the median are noise
+    double max_tilt_deg = 30.0;      ///< spin-axis search range around sensor z; 0 = sensor z
+    std::size_t max_points = 20000;  ///< points used for the axis search (an even subsample)
 };
 
 /// Rings x columns of a spinning LiDAR, about a spin axis in the sensor frame.

@@ -3,9 +3,10 @@
 //
 // Colour maps: sequential (range: dark blue - teal - yellow, near to far) and diverging (error,
 // SDF: blue for negative, white at zero, red for positive); values beyond the scale saturate.
-// Pixels without a value (NaN) are black unless the layout says otherwise; normals map each component from [-1, 1] to [0, 255]
-// (x red, y green, z blue: the usual normal-map colours). LiDAR images are much wider than tall,
-// so rows are repeated to make the preview at least min_height_px tall.
+// Pixels without a value (NaN) are black unless the layout says otherwise; normals map each
+// component from [-1, 1] to [0, 255] (x red, y green, z blue: the usual normal-map colours). LiDAR
+// images are much wider than tall, so rows are repeated to make the preview at least min_height_px
+// tall.
 #pragma once
 
 #include <string>
