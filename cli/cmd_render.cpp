@@ -151,7 +151,7 @@ int run_render(const RenderOptions& opt) {
         const ExrImage image = renderer.render(rays, scan.T_world_sensor);
         const std::string base = frame_name(opt.frame);
         const int w = image.width(), h = image.height();
-        const std::vector<float>& range = image.channel("range");
+        const std::vector<float>& range = image.channel("range.V");
         ColourScale range_scale;
         range_scale.max = std::ceil(finite_quantile(range, 0.99, 1.0));
         products.push_back({out / (base + "_range.png"), std::nullopt,
@@ -161,9 +161,9 @@ int run_render(const RenderOptions& opt) {
             {out / (base + "_normal.png"), std::nullopt,
              preview_normals(image.channel("normal.X"), image.channel("normal.Y"),
                              image.channel("normal.Z"), w, h, base + " surface normal")});
-        if (image.has_channel("error")) {
-            const std::vector<float>& error = image.channel("error");
-            const std::vector<float>& measured = image.channel("measured");
+        if (image.has_channel("error.V")) {
+            const std::vector<float>& error = image.channel("error.V");
+            const std::vector<float>& measured = image.channel("measured.V");
             std::size_t returns = 0, hits = 0, within = 0;
             std::vector<float> abs_error;
             for (std::size_t i = 0; i < error.size(); ++i) {
@@ -218,7 +218,7 @@ int run_render(const RenderOptions& opt) {
             products.push_back({out / (base + ".exr"), slice, std::nullopt});
             products.push_back(
                 {out / (base + ".png"), std::nullopt,
-                 preview_scalar(slice.channel("sdf"), slice.width(), slice.height(), scale,
+                 preview_scalar(slice.channel("sdf.V"), slice.width(), slice.height(), scale,
                                 base + " SDF (black: zero level; grey: unobserved)", layout)});
         }
     }

@@ -56,15 +56,15 @@ TEST_F(RenderCli, RendersASimulatedScanInItsOwn64RingProjection) {
     }
     const ExrImage image = read_exr(dir_ / "out" / "frame_000001.exr");
     EXPECT_EQ(image.height(), 64);
-    for (const char* channel : {"range", "normal.X", "normal.Y", "normal.Z", "measured", "error"}) {
+    for (const char* channel : {"range.V", "normal.X", "normal.Y", "normal.Z", "measured.V", "error.V"}) {
         EXPECT_TRUE(image.has_channel(channel)) << channel;
     }
     // Against the mesh the scan was simulated from, every return has a surface at its measured
     // range (measured here: 100.00 % hit, median |error| 0.00 cm, frame 1 of seed 5).
     constexpr double kWithinM = 0.01;  // 1 cm
     std::size_t returns = 0, hits = 0, within = 0;
-    const auto& error = image.channel("error");
-    const auto& measured = image.channel("measured");
+    const auto& error = image.channel("error.V");
+    const auto& measured = image.channel("measured.V");
     for (std::size_t i = 0; i < error.size(); ++i) {
         if (std::isnan(measured[i])) continue;
         ++returns;
@@ -86,7 +86,7 @@ TEST_F(RenderCli, PinholeCameraGivesTheRequestedSize) {
     const ExrImage image = read_exr(dir_ / "out" / "frame_000000.exr");
     EXPECT_EQ(image.width(), 160);
     EXPECT_EQ(image.height(), 120);
-    EXPECT_FALSE(image.has_channel("error"));
+    EXPECT_FALSE(image.has_channel("error.V"));
     EXPECT_FALSE(fs::exists(dir_ / "out" / "frame_000000_error.png"));
 }
 

@@ -122,8 +122,8 @@ TEST(RenderMapView, PinholeViewOfAPlaneGivesTheAnalyticRange) {
     const PixelRays rays = camera_pixel_rays(camera);
     const MeshRenderer renderer(mesh);
     const ExrImage image = renderer.render(rays, T_world_sensor);
-    EXPECT_FALSE(image.has_channel("error"));
-    const auto& range = image.channel("range");
+    EXPECT_FALSE(image.has_channel("error.V"));
+    const auto& range = image.channel("range.V");
     for (int v = 0; v < camera.height; ++v) {
         for (int u = 0; u < camera.width; ++u) {
             const std::size_t i = std::size_t(v) * camera.width + u;
@@ -160,9 +160,9 @@ TEST(RenderMapView, LidarViewOfAPlaneGivesRangeErrorAndMisses) {
     const PixelRays rays = scan_pixel_rays(model, points, 1.0, 150.0);
     const MeshRenderer renderer(mesh);
     const ExrImage image = renderer.render(rays, T_world_sensor);
-    const auto& error = image.channel("error");
-    const auto& measured = image.channel("measured");
-    const auto& range = image.channel("range");
+    const auto& error = image.channel("error.V");
+    const auto& measured = image.channel("measured.V");
+    const auto& range = image.channel("range.V");
     int down = 0, up = 0;
     for (int row = 0; row < 16; ++row) {
         for (int col = 0; col < 360; ++col) {
@@ -208,7 +208,7 @@ TEST(RenderSdfSlice, MatchesDirectQueriesAndIsNanOutsideTheMap) {
     // Two separate blobs of cells, so the slice's box holds unobserved pixels between them.
     sdf.octree.allocate_cells({{0.2f, 0.2f, 1.2f}, {4.2f, 3.2f, 1.2f}});
     const ExrImage slice = slice_neural_sdf(sdf, parse_slice_plane("z=1.3"));
-    const auto& values = slice.channel("sdf");
+    const auto& values = slice.channel("sdf.V");
     const double pixel_m = std::stod(slice.attributes.at("shine_pixel_m"));
     EXPECT_DOUBLE_EQ(pixel_m, 0.5);
     std::size_t finite = 0, unobserved = 0;

@@ -58,14 +58,14 @@ ExrImage MeshRenderer::render(const PixelRays& rays, const Eigen::Isometry3d& T_
         for (std::size_t i = 0; i < n; ++i) {
             error[i] = rays.measured_range_m[i] - range[i];  // NaN if either is NaN
         }
-        image.add_channel("range", std::move(range));
+        image.add_channel("range.V", std::move(range));
         image.add_channel("normal.X", std::move(nx));
         image.add_channel("normal.Y", std::move(ny));
         image.add_channel("normal.Z", std::move(nz));
-        image.add_channel("measured", rays.measured_range_m);
-        image.add_channel("error", std::move(error));
+        image.add_channel("measured.V", rays.measured_range_m);
+        image.add_channel("error.V", std::move(error));
     } else {
-        image.add_channel("range", std::move(range));
+        image.add_channel("range.V", std::move(range));
         image.add_channel("normal.X", std::move(nx));
         image.add_channel("normal.Y", std::move(ny));
         image.add_channel("normal.Z", std::move(nz));

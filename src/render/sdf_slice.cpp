@@ -107,7 +107,7 @@ ExrImage slice_neural_sdf(const NeuralSdf& sdf, const SlicePlane& plane,
     for (std::size_t i = 0; i < values.size(); ++i) {
         if (!valid[i]) values[i] = std::numeric_limits<float>::quiet_NaN();
     }
-    image.add_channel("sdf", std::move(values));
+    image.add_channel("sdf.V", std::move(values));
     char text[256];
     std::snprintf(text, sizeof(text), "%.6f %.6f %.6f", corner_world.x(), corner_world.y(),
                   corner_world.z());

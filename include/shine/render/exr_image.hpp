@@ -1,7 +1,7 @@
 // Multi-channel float32 images written to and read from OpenEXR files (OpenEXR 3.1, Debian's
 // libopenexr-dev): the format Blender, Nuke and OpenEXR's own tools (exrheader) open.
 //
-// An ExrImage is a width x height raster of named float channels ("range", "normal.X", ...),
+// An ExrImage is a width x height raster of named float channels ("range.V", "normal.X", ...),
 // row-major with row 0 at the top, plus string attributes stored in the file's header (how pixels
 // map to the world, the units). Files are scan-line images with lossless ZIP compression; NaN is
 // stored as NaN. Writes go to a temporary name and are renamed, so a failed write leaves nothing.

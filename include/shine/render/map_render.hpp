@@ -1,15 +1,17 @@
 // Images of a map's surface from a sensor pose: every pixel's ray cast into the map's triangle
 // mesh (the same closest-hit RayCaster the held-out yardstick uses), giving
-//   range     predicted range along the ray (m), NaN where the ray meets no surface;
+//   range.V   predicted range along the ray (m), NaN where the ray meets no surface;
 //   normal.X, normal.Y, normal.Z
 //             unit normal of the hit triangle in the world frame, turned to face the sensor;
 //             NaN where no hit;
 // and, when the rays carry the scan's measured ranges (the spherical LiDAR model),
-//   measured  the scan's range in that pixel (m), NaN where the LiDAR had no return;
-//   error     measured - predicted (m, signed), NaN where either is missing. Negative: the map's
+//   measured.V the scan's range in that pixel (m), NaN where the LiDAR had no return;
+//   error.V   measured - predicted (m, signed), NaN where either is missing. Negative: the map's
 //             surface lies behind what the LiDAR saw (a hole, or an object the map lacks);
 //             positive: the map has surface in front of the measured point (a phantom surface).
-// Ranges are Euclidean distances from the sensor along the pixel's ray (not z-depth).
+// Ranges are Euclidean distances from the sensor along the pixel's ray (not z-depth). Every name
+// is layer.channel: Blender reads such a file as a multilayer EXR with one pass per quantity
+// (it rejects a bare name like "range", and then drops that channel).
 #pragma once
 
 #include <Eigen/Geometry>

@@ -9,7 +9,7 @@
 //   z=: image x = world x (right), image y = world -y (north up);
 //   y=: image x = world x (right), image y = world -z (up);
 //   x=: image x = world y (right), image y = world -z (up).
-// The EXR has one channel, "sdf" (m, positive in free space), and header attributes giving the
+// The EXR has one channel, "sdf.V" (m, positive in free space), and header attributes giving the
 // world position of pixel (0, 0)'s centre and the pixel size.
 #pragma once
 
