@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 
 PACKAGES=(cmake g++ make pkg-config
           libopenvdb-dev libopenvdb-tools libboost-iostreams-dev libtbb-dev libeigen3-dev
-          libimath-dev libopenexr-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
+          libimath-dev libopenexr-dev openexr libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
           libnanoflann-dev libgtest-dev libgmock-dev libbenchmark-dev
           libpng-dev libbz2-dev zlib1g-dev liblz4-dev libzstd-dev libsqlite3-dev
           blender python3-distributed python3-numpy python3-yaml
