@@ -242,7 +242,7 @@ TEST(CityScene, JunctionGroundsAreHeightFieldsWithRoadOnTheirArms) {
         std::size_t road = 0, raised = 0;
         for (double x = lo.x() + 0.05; x < hi.x(); x += 0.37) {
             for (double y = lo.y() + 0.05; y < hi.y(); y += 0.37) {
-                const shine::sim::RayHit hit =
+                const shine::RayHit hit =
                     caster.cast(Eigen::Vector3d(x, y, 5.0), -Eigen::Vector3d::UnitZ());
                 ASSERT_TRUE(hit.hit()) << x << " " << y;
                 const double z = 5.0 - hit.distance_m;
@@ -268,7 +268,7 @@ TEST(CityScene, JunctionGroundsAreHeightFieldsWithRoadOnTheirArms) {
                              : d.x() < 0 ? junction.arm_west
                              : d.y() > 0 ? junction.arm_north
                                          : junction.arm_south;
-            const shine::sim::RayHit hit = caster.cast(from, d);
+            const shine::RayHit hit = caster.cast(from, d);
             if (arm) {
                 EXPECT_FALSE(hit.hit());  // the road leaves the junction
             } else {
@@ -340,13 +340,13 @@ double check_car_is_clear(const TestCity& s) {
         const Eigen::Vector3d sensor = T.translation();
         const shine::sim::BlockSelection near = s.caster.select(sensor, 100.0);
         // The road is right below: the ground at z = 0, not a curb, roof or car.
-        const shine::sim::RayHit down = near.cast(sensor, -Eigen::Vector3d::UnitZ());
+        const shine::RayHit down = near.cast(sensor, -Eigen::Vector3d::UnitZ());
         EXPECT_TRUE(down.hit()) << "pose " << i;
         if (!down.hit()) return -1.0;
         EXPECT_EQ(part_of(parts, down.triangle_id).kind, SceneObjectKind::kGround) << "pose " << i;
         EXPECT_NEAR(down.distance_m, sensor_height_m, 1e-5) << "pose " << i;
         // Nothing hangs low over the car (lamp arms and tree crowns stay above 3.5 m).
-        const shine::sim::RayHit up = near.cast(sensor, Eigen::Vector3d::UnitZ(), 0.0, 2.0);
+        const shine::RayHit up = near.cast(sensor, Eigen::Vector3d::UnitZ(), 0.0, 2.0);
         EXPECT_FALSE(up.hit()) << "pose " << i;
         const Eigen::Vector3d forward = T.linear().col(0);
         const double yaw = std::atan2(forward.y(), forward.x());
@@ -357,7 +357,7 @@ double check_car_is_clear(const TestCity& s) {
                 const double box_m =
                     std::min(kHalfLengthM / std::max(1e-9, std::abs(std::cos(angle))),
                              kHalfWidthM / std::max(1e-9, std::abs(std::sin(angle))));
-                const shine::sim::RayHit hit =
+                const shine::RayHit hit =
                     near.cast(Eigen::Vector3d(sensor.x(), sensor.y(), height_m), d, 0.0, 20.0);
                 if (hit.hit()) min_margin_m = std::min(min_margin_m, hit.distance_m - box_m);
             }
@@ -369,7 +369,7 @@ double check_car_is_clear(const TestCity& s) {
             const double phi = k * M_PI * (3.0 - std::sqrt(5.0));  // Fibonacci sphere
             const Eigen::Vector3d d(std::sqrt(1 - z * z) * std::cos(phi),
                                     std::sqrt(1 - z * z) * std::sin(phi), z);
-            const shine::sim::RayHit hit = near.cast(sensor, d, 0.0, 80.0);
+            const shine::RayHit hit = near.cast(sensor, d, 0.0, 80.0);
             if (!hit.hit()) continue;
             EXPECT_LT(face_normal(mesh, hit.triangle_id).dot(d), 0.0)
                 << "pose " << i << " hits the back of a "
@@ -455,7 +455,7 @@ TEST(RouteSimulation, ShortRouteWritesAConsistentSequence) {
         ASSERT_GT(points_sensor.size(), 16u * 360u / 2u) << name;
         for (std::size_t i = 0; i < points_sensor.size(); i += 29) {
             const Eigen::Vector3d p = points_sensor[i].cast<double>();
-            const shine::sim::RayHit hit = caster.cast(
+            const shine::RayHit hit = caster.cast(
                 poses[frame].translation(), (poses[frame].linear() * p).normalized(), 0.0, 100.0);
             ASSERT_TRUE(hit.hit());
             EXPECT_NEAR(hit.distance_m, p.norm(), 1e-3);

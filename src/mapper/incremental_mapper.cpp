@@ -83,7 +83,6 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     // every scan would change the SDF of every earlier region at once.
     if (inc.decoder_weights != "none") config_.trainer.train_decoder = false;
     config_.sampling.surface_band_m = inc.surface_band_m;
-    config_.preprocess.voxel_downsample_m = inc.voxel_downsample_m;
     config_.trainer.feature_adam.learning_rate = inc.learning_rate;
     config_.trainer.batch_size = inc.batch_size;
     config_.normals.neighbors = inc.normal_neighbors;

@@ -196,7 +196,6 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"learning_rate", number(c.incremental.learning_rate, 1e-7, 10.0)},
           {"batch_size", number(c.incremental.batch_size, 1, 1 << 22)},
           {"surface_band_m", number(c.incremental.surface_band_m, 1e-3, 10.0)},
-          {"voxel_downsample_m", number(c.incremental.voxel_downsample_m, 0.0, 10.0)},
           {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)},
           {"normal_neighbors", number(c.incremental.normal_neighbors, 5, 64)},
           {"importance_ray_stride", number(c.incremental.importance_ray_stride, 1, 1000)},
@@ -216,7 +215,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
 
 PreprocessConfig mapper_preprocess_defaults() {
     PreprocessConfig config;
-    config.voxel_downsample_m = 0.1;
+    config.voxel_downsample_m = 0.2;
     return config;
 }
 
@@ -224,7 +223,7 @@ MapperConfig::MapperConfig() {
     trainer.batch_size = 0;
     trainer.feature_adam.learning_rate = 0.0f;
     // Measured on held-out real scans and on the simulated streets (docs/heldout.md): linear
-    // weights, a 0.1 m band and 0.1 m thinning at 0.2 m leaves.
+    // weights and a 0.1 m surface band.
     octree.interpolation = Interpolation::kLinear;
     sampling.surface_band_m = 0.1f;
 }

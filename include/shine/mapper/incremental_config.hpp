@@ -33,9 +33,6 @@ struct IncrementalConfig {
     /// with one scan per training round, a narrow band (the paper's +-3 sigma) places the
     /// surface better; measured in docs/incremental.md.
     float surface_band_m = 0.15f;
-    /// The scans' thinning in incremental mode (replaces preprocess.voxel_downsample_m): one point
-    /// per 0.2 m voxel keeps a frame within its time budget (docs/performance.md).
-    double voxel_downsample_m = 0.2;
     /// Normals of the current scan's endpoints are estimated among the endpoints of the current
     /// scan and the scans just before it, this many in all (1: the current scan alone), from
     /// normal_neighbors of them (replaces sampling.normal_neighbors in incremental mode). 7 scans
