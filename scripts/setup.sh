@@ -36,6 +36,9 @@ if [ -d build/python/shinevdb ]; then
     [ "$(id -u)" -ne 0 ] && SUDO="sudo"
     site_dir="$(/usr/bin/python3 -c 'import site; print(site.getsitepackages()[0])')"
     $SUDO mkdir -p "$site_dir"
-    echo "$(pwd)/build/python" | $SUDO tee "$site_dir/shinevdb.pth" >/dev/null
+    # Debian's Blender runs this same Python 3.11 and reads the same .pth files, and its add-on
+    # is also called shinevdb: the module's folder joins sys.path everywhere but in Blender.
+    echo "import os, sys; os.path.basename(sys.argv[0] if sys.argv else '').startswith('blender') or sys.path.append('$(pwd)/build/python')" |
+        $SUDO tee "$site_dir/shinevdb.pth" >/dev/null
     /usr/bin/python3 -c "import shinevdb" && echo "setup: import shinevdb works ($site_dir/shinevdb.pth)"
 fi

@@ -95,6 +95,10 @@ struct RunResult {
 RunResult run(float regularization_weight) {
     MapperConfig config;
     config.octree.leaf_size_m = 0.25;
+    // The thresholds below were measured with the paper's smoothstep weights. With the linear
+    // default this small scene forgets less without the regulariser (measured: region A's error
+    // 0.0128 -> 0.0145 m, +13 %; with it 0.0101 -> 0.0088 m), too little for the 15 % bound.
+    config.octree.interpolation = Interpolation::kSmoothstep;
     config.preprocess.min_range_m = 0.5;
     config.preprocess.max_range_m = 10.0;
     config.trainer.batch_size = 2048;
