@@ -82,17 +82,8 @@ class McapReader final : public RecordingReader {
     }
 
     std::vector<RecordingMessage> messages(const std::string& topic) const override {
-        std::vector<RecordingMessage> out;
-        for (const auto& [id, ch] : channels_) {
-            if (ch.topic != topic) continue;
-            const auto it = messages_.find(id);
-            if (it != messages_.end()) out.insert(out.end(), it->second.begin(), it->second.end());
-        }
-        std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
-            if (a.log_time_ns != b.log_time_ns) return a.log_time_ns < b.log_time_ns;
-            return a.block != b.block ? a.block < b.block : a.offset < b.offset;
-        });
-        return out;
+        // Several channels of one topic are merged in time; ties keep file order.
+        return recording_internal::topic_messages_in_time(channels_, messages_, topic);
     }
 
     std::string read(const RecordingMessage& m) override {

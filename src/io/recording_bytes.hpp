@@ -3,14 +3,17 @@
 // IoError naming the file, the byte offset and what was being read.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "shine/core/error.hpp"
+#include "shine/io/recording.hpp"
 
 namespace shine::recording_internal {
 
@@ -97,5 +100,25 @@ class RangedFile {
 std::string decompress_block(std::string_view compressed, const std::string& compression,
                              std::uint64_t uncompressed_bytes, const std::filesystem::path& source,
                              const std::string& kind, std::uint64_t offset);
+
+/// The messages of `topic` over every connection (ROS 1) or channel (MCAP) that carries it,
+/// merged in log time; ties keep file order (block, then offset). `connections` maps an id to a
+/// record with a `topic`; `messages` maps the same id to its indexed messages.
+template <class Connections, class MessagesById>
+std::vector<RecordingMessage> topic_messages_in_time(const Connections& connections,
+                                                     const MessagesById& messages,
+                                                     const std::string& topic) {
+    std::vector<RecordingMessage> out;
+    for (const auto& [id, connection] : connections) {
+        if (connection.topic != topic) continue;
+        const auto it = messages.find(id);
+        if (it != messages.end()) out.insert(out.end(), it->second.begin(), it->second.end());
+    }
+    std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
+        if (a.log_time_ns != b.log_time_ns) return a.log_time_ns < b.log_time_ns;
+        return a.block != b.block ? a.block < b.block : a.offset < b.offset;
+    });
+    return out;
+}
 
 }  // namespace shine::recording_internal

@@ -140,18 +140,8 @@ class RosBag1Reader final : public RecordingReader {
     }
 
     std::vector<RecordingMessage> messages(const std::string& topic) const override {
-        std::vector<RecordingMessage> out;
-        for (const auto& [id, conn] : connections_) {
-            if (conn.topic != topic) continue;
-            const auto it = messages_.find(id);
-            if (it != messages_.end()) out.insert(out.end(), it->second.begin(), it->second.end());
-        }
         // Several connections of one topic are merged in time; ties keep file order.
-        std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
-            if (a.log_time_ns != b.log_time_ns) return a.log_time_ns < b.log_time_ns;
-            return a.block != b.block ? a.block < b.block : a.offset < b.offset;
-        });
-        return out;
+        return recording_internal::topic_messages_in_time(connections_, messages_, topic);
     }
 
     std::string read(const RecordingMessage& m) override {
