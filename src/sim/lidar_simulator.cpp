@@ -96,6 +96,8 @@ void validate(const LidarConfig& c) {
             c.elevation_max_deg, "must be in [-90, 90]");
     require(c.elevation_min_deg >= -90.0 && c.elevation_min_deg <= c.elevation_max_deg,
             "elevation_min_deg", c.elevation_min_deg, "must be in [-90, elevation_max_deg]");
+    require(c.azimuth_fov_deg > 0.0 && c.azimuth_fov_deg <= 360.0, "azimuth_fov_deg",
+            c.azimuth_fov_deg, "must be in (0, 360]");
     require(c.min_range_m >= 0.0, "min_range_m", c.min_range_m, "must be >= 0");
     require(c.max_range_m > c.min_range_m && std::isfinite(c.max_range_m), "max_range_m",
             c.max_range_m, "must be finite and > min_range_m");
@@ -110,7 +112,14 @@ Eigen::Vector3d lidar_ray_direction(const LidarConfig& config, int beam, int azi
             : config.elevation_max_deg - (config.elevation_max_deg - config.elevation_min_deg) *
                                              beam / (config.num_beams - 1);
     const double elevation = elevation_deg * kDegToRad;
-    const double azimuth = 2.0 * M_PI * azimuth_step / config.azimuth_steps;
+    // A full turn keeps its own formula (the street's scans stay bit for bit the same).
+    const double azimuth =
+        config.azimuth_fov_deg >= 360.0
+            ? 2.0 * M_PI * azimuth_step / config.azimuth_steps
+            : (config.azimuth_steps == 1
+                   ? 0.0
+                   : config.azimuth_fov_deg * kDegToRad *
+                         (static_cast<double>(azimuth_step) / (config.azimuth_steps - 1) - 0.5));
     return Eigen::Vector3d(std::cos(elevation) * std::cos(azimuth),
                            std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
 }

@@ -18,12 +18,15 @@ namespace shine::sim {
 
 /// Sensor model. Beams are evenly spaced in elevation from elevation_max_deg (beam 0) down to
 /// elevation_min_deg; azimuths are evenly spaced over a full turn starting at +x (counter-
-/// clockwise seen from above). Sensor frame: x forward, y left, z up.
+/// clockwise seen from above), or, with azimuth_fov_deg < 360 (a scanner with a narrow field of
+/// view), from -fov/2 to +fov/2 about +x, both ends included. Sensor frame: x forward, y left,
+/// z up.
 struct LidarConfig {
     int num_beams = 64;
     double elevation_max_deg = 2.0;
     double elevation_min_deg = -24.8;
     int azimuth_steps = 1800;          ///< 0.2 deg resolution
+    double azimuth_fov_deg = 360.0;    ///< 360: a spinning LiDAR; less: a narrow field of view
     double min_range_m = 1.0;          ///< closer returns are dropped
     double max_range_m = 80.0;         ///< farther surfaces give no return
     double range_noise_sigma_m = 0.0;  ///< Gaussian noise added to each range
