@@ -32,6 +32,7 @@ struct MapOptions {
     std::string out = "out";
     std::string config_path;
     double leaf_size_m = 0.0;
+    std::string scene;  ///< empty: the configuration's map.scene
     int threads = -1;
     int iterations = -1;
     long long seed = -1;
@@ -197,6 +198,11 @@ MapperConfig config_from_options(const MapOptions& opt) {
     if (opt.leaf_size_m != 0.0) {
         if (!(opt.leaf_size_m > 0.0)) throw ConfigError("--leaf-size-m must be positive");
         config.octree.leaf_size_m = opt.leaf_size_m;
+        config.mark_set("map.leaf_size_m");
+    }
+    if (!opt.scene.empty()) {
+        config.scene = opt.scene;
+        config.mark_set("map.scene");
     }
     if (opt.threads >= 0) config.threads = opt.threads;
     if (opt.iterations >= 0) config.iterations = opt.iterations;
@@ -298,6 +304,7 @@ int run_map(const MapOptions& given_options) {
     json["rays"] = stats.rays;
     json["threads"] = config.threads;
     json["leaf_size_m"] = config.octree.leaf_size_m;
+    json["scene"] = to_string(config.resolved_scene());
     json["iterations"] = stats.iterations;
     json["preprocess"] = {{"input_points", stats.preprocess.input},
                           {"dropped_nonfinite", stats.preprocess.dropped_nonfinite},
@@ -338,8 +345,10 @@ int run_map(const MapOptions& given_options) {
     if (opt.profile) std::printf("%s", profile.format_table().c_str());
     if (!ref.empty()) {
         const auto t0 = std::chrono::steady_clock::now();
-        const MeshMetrics metrics =
-            evaluate_meshes(read_ply_mesh(out / "mesh.ply"), read_ply_mesh(ref));
+        // At the scene's threshold: 10 cm outdoors (the street's protocol), 1 mm for an object.
+        const MeshMetrics metrics = evaluate_meshes(
+            read_ply_mesh(out / "mesh.ply"), read_ply_mesh(ref),
+            eval_config_for_threshold(scene_defaults(config.resolved_scene()).eval_threshold_m));
         json["eval"] = nlohmann::json::parse(metrics_to_json(metrics));
         json["eval"]["reference"] = ref.string();
         json["seconds"]["eval"] = seconds_since(t0);
@@ -366,7 +375,15 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     cmd->add_option("-o,--output", opt->out, "Output directory")->capture_default_str();
     cmd->add_option("-c,--config", opt->config_path,
                     "YAML configuration (see examples/config.yaml)");
-    cmd->add_option("--leaf-size-m", opt->leaf_size_m, "Level-0 cell size in metres (default 0.2)");
+    cmd->add_option("--leaf-size-m", opt->leaf_size_m,
+                    "Level-0 cell size in metres (default 0.2, or the --scene's); every length "
+                    "default not set in the config (thinning, surface band, sigma, normal radius) "
+                    "follows it in proportion");
+    cmd->add_option("--scene", opt->scene,
+                    "outdoor (1.5-60 m ranges, 0.2 m leaves, scored at 10 cm), indoor (0.3-20 m, "
+                    "0.05 m, 2 cm) or object (0.1-3 m, 3 mm, 1 mm); default (map.scene: auto): "
+                    "from the leaf size, outdoor from 0.1 m, object below 1 cm")
+        ->check(CLI::IsMember({"auto", "outdoor", "indoor", "object"}));
     cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)");
     cmd->add_option("--iterations", opt->iterations,
                     "Optimisation steps (batch mode). Default: automatic, 250 steps of 32768 "

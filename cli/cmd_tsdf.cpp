@@ -16,6 +16,7 @@
 #include "shine/eval/metrics_report.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/scan_sequence.hpp"
+#include "shine/io/scene_preset.hpp"
 #include "shine/sim/lidar_simulator.hpp"
 #include "shine/tsdf/tsdf_file.hpp"
 #include "shine/tsdf/tsdf_mapper.hpp"
@@ -36,14 +37,33 @@ struct TsdfOptions {
     std::string ref_path;
     bool no_eval = false;
     bool quiet = false;
+    std::string scene = "auto";  ///< outdoor | indoor | object | auto (from the voxel size)
+    bool min_range_given = false, max_range_given = false;
+    bool trunc_given = false, downsample_given = false;
 };
+
+/// The scene's defaults for the options not given. Outdoors nothing changes (VDBFusion's street
+/// settings); indoors and for objects the ranges come from the preset, the truncation is 3 voxels
+/// and the input thinning half a voxel, as the outdoor defaults are at 0.1 m voxels.
+TsdfMapperConfig config_for_scene(const TsdfOptions& opt, ScenePreset preset) {
+    TsdfMapperConfig config = opt.config;
+    if (preset == ScenePreset::kOutdoor) return config;
+    const SceneDefaults scene = scene_defaults(preset);
+    if (!opt.min_range_given) config.preprocess.min_range_m = scene.min_range_m;
+    if (!opt.max_range_given) config.preprocess.max_range_m = scene.max_range_m;
+    if (!opt.trunc_given) config.tsdf.trunc_m = 3.0 * config.tsdf.voxel_size_m;
+    if (!opt.downsample_given) config.preprocess.voxel_downsample_m = config.tsdf.voxel_size_m / 2;
+    return config;
+}
 
 std::size_t size_of(const fs::path& path) { return static_cast<std::size_t>(fs::file_size(path)); }
 
 int run_tsdf(const TsdfOptions& opt) {
     const auto start_total = std::chrono::steady_clock::now();
     Progress::set_globally_enabled(!opt.quiet);
-    const TsdfMapperConfig& config = opt.config;
+    const ScenePreset preset = opt.scene == "auto" ? scene_for_leaf(opt.config.tsdf.voxel_size_m)
+                                                   : parse_scene_preset(opt.scene, "--scene");
+    const TsdfMapperConfig config = config_for_scene(opt, preset);
     config.validate();
     auto thread_limit = limit_threads(opt.threads);
 
@@ -110,6 +130,7 @@ int run_tsdf(const TsdfOptions& opt) {
     json["frames"] = stats.frames;
     json["points"] = stats.points;
     json["threads"] = opt.threads;
+    json["scene"] = to_string(preset);
     json["parameters"] = {{"voxel_size_m", config.tsdf.voxel_size_m},
                           {"trunc_m", config.tsdf.trunc_m},
                           {"space_carving", config.tsdf.space_carving},
@@ -150,7 +171,9 @@ int run_tsdf(const TsdfOptions& opt) {
                 (out / "mesh.ply").c_str(), mesh.triangles.size());
     if (!ref.empty()) {
         t0 = std::chrono::steady_clock::now();
-        const MeshMetrics metrics = evaluate_meshes(mesh, read_ply_mesh(ref));
+        const MeshMetrics metrics =
+            evaluate_meshes(mesh, read_ply_mesh(ref),
+                            eval_config_for_threshold(scene_defaults(preset).eval_threshold_m));
         json["eval"] = nlohmann::json::parse(metrics_to_json(metrics));
         json["eval"]["reference"] = ref.string();
         json["seconds"]["eval"] = seconds_since(t0);
@@ -177,20 +200,31 @@ const RegisterCommand kRegister(60, [](CLI::App& app, Action& action) {
     cmd->add_option("-o,--output", opt->out, "Output directory")->capture_default_str();
     cmd->add_option("--voxel-size-m", c.tsdf.voxel_size_m, "Voxel edge, m (VDBFusion voxel_size)")
         ->capture_default_str();
-    cmd->add_option("--trunc-m", c.tsdf.trunc_m,
-                    "Truncation distance, m (VDBFusion sdf_trunc; it uses 3 voxels)")
+    cmd->add_option("--scene", opt->scene,
+                    "outdoor, indoor or object: ranges and evaluation threshold as `shine map "
+                    "--scene`; indoor and object also default to 3 voxels of truncation and half "
+                    "a voxel of thinning; auto: from the voxel size (outdoor from 0.1 m)")
+        ->check(CLI::IsMember({"auto", "outdoor", "indoor", "object"}))
         ->capture_default_str();
-    cmd->add_option("--voxel-downsample-m", c.preprocess.voxel_downsample_m,
-                    "Keep one point per voxel of this size before fusing, m (0: every point, as "
-                    "VDBFusion's loaders)")
-        ->check(CLI::NonNegativeNumber)
-        ->capture_default_str();
-    cmd->add_option("--min-range-m", c.preprocess.min_range_m, "Drop points closer than this, m")
-        ->check(CLI::NonNegativeNumber)
-        ->capture_default_str();
-    cmd->add_option("--max-range-m", c.preprocess.max_range_m, "Drop points farther than this, m")
-        ->check(CLI::PositiveNumber)
-        ->capture_default_str();
+    CLI::Option* trunc =
+        cmd->add_option("--trunc-m", c.tsdf.trunc_m,
+                        "Truncation distance, m (VDBFusion sdf_trunc; it uses 3 voxels)")
+            ->capture_default_str();
+    CLI::Option* downsample =
+        cmd->add_option(
+               "--voxel-downsample-m", c.preprocess.voxel_downsample_m,
+               "Keep one point per voxel of this size before fusing, m (0: every point, as "
+               "VDBFusion's loaders)")
+            ->check(CLI::NonNegativeNumber)
+            ->capture_default_str();
+    CLI::Option* min_range = cmd->add_option("--min-range-m", c.preprocess.min_range_m,
+                                             "Drop points closer than this, m")
+                                 ->check(CLI::NonNegativeNumber)
+                                 ->capture_default_str();
+    CLI::Option* max_range = cmd->add_option("--max-range-m", c.preprocess.max_range_m,
+                                             "Drop points farther than this, m")
+                                 ->check(CLI::PositiveNumber)
+                                 ->capture_default_str();
     cmd->add_flag("--space-carving", c.tsdf.space_carving,
                   "Update every voxel from the sensor to the point, not only the band");
     cmd->add_option("--min-weight", c.mesh.min_weight,
@@ -208,7 +242,13 @@ const RegisterCommand kRegister(60, [](CLI::App& app, Action& action) {
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     add_holdout_option(cmd, opt->holdout_every);
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
-    cmd->callback([opt, &action] { action = [opt] { return run_tsdf(*opt); }; });
+    cmd->callback([opt, &action, trunc, downsample, min_range, max_range] {
+        opt->trunc_given = trunc->count() > 0;
+        opt->downsample_given = downsample->count() > 0;
+        opt->min_range_given = min_range->count() > 0;
+        opt->max_range_given = max_range->count() > 0;
+        action = [opt] { return run_tsdf(*opt); };
+    });
 });
 
 }  // namespace

@@ -70,6 +70,20 @@ TriangleMesh in_frame(const TriangleMesh& mesh, const Eigen::Vector3d& origin_wo
 
 }  // namespace mesh_metrics_internal
 
+EvalConfig eval_config_for_threshold(double threshold_m) {
+    mesh_metrics_internal::require_positive(threshold_m, "threshold_m");
+    EvalConfig config;
+    const double street_threshold_m = config.threshold_m;
+    config.threshold_m = threshold_m;
+    if (threshold_m >= street_threshold_m) return config;
+    const double scale = threshold_m / street_threshold_m;
+    config.downsample_m *= scale;
+    config.accuracy_max_m *= scale;
+    config.completion_cap_m *= scale;
+    config.sample_density_per_m2 /= scale * scale;
+    return config;
+}
+
 MeshMetrics evaluate_meshes(const TriangleMesh& pred_mesh, const TriangleMesh& ref,
                             const EvalConfig& config) {
     using namespace mesh_metrics_internal;

@@ -8,6 +8,7 @@
 #include <functional>
 #include <map>
 #include <sstream>
+#include <type_traits>
 
 #include "shine/core/error.hpp"
 
@@ -130,6 +131,20 @@ Field text(std::string& field) {
             [&field](YAML::Emitter& out) { out << field; }};
 }
 
+/// map.scene: "auto" or a preset's name.
+Field scene_name(std::string& field) {
+    return {[&field](const YAML::Node& node, const std::string& key) {
+                const std::string v = scalar_text(node, key);
+                if (v != "auto" && v != "outdoor" && v != "indoor" && v != "object") {
+                    throw ConfigError("key '" + key +
+                                      "': expected 'auto', 'outdoor', 'indoor' or 'object', got '" +
+                                      v + "'");
+                }
+                field = v;
+            },
+            [&field](YAML::Emitter& out) { out << field; }};
+}
+
 Field precision(FeaturePrecision& field) {
     return {[&field](const YAML::Node& node, const std::string& key) {
                 field = parse_feature_precision(scalar_text(node, key), key);
@@ -165,22 +180,23 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"feature_precision", precision(c.octree.feature_precision)},
           {"interpolation", interpolation(c.octree.interpolation)},
           {"max_map_mb", number(c.max_map_mb, 0.0, 1e9)},
-          {"origin_world_m", double_list(c.origin_world_m, 3)}}},
+          {"origin_world_m", double_list(c.origin_world_m, 3)},
+          {"scene", scene_name(c.scene)}}},
         {"decoder", {{"hidden_dims", int_list(c.decoder.hidden_dims, 1, 1024)}}},
         {"sampling",
          {{"surface_samples", number(c.sampling.surface_samples, 0, 32)},
           {"free_samples", number(c.sampling.free_samples, 0, 32)},
-          {"surface_band_m", number(c.sampling.surface_band_m, 1e-3, 10.0)},
+          {"surface_band_m", number(c.sampling.surface_band_m, 1e-4, 10.0)},
           {"free_space_start_ratio", number(c.sampling.free_space_start_ratio, 0.0, 1.0)},
           {"use_normals", boolean(c.normals.enabled)},
           {"surface_samples_along_normal", boolean(c.sampling.surface_samples_along_normal)},
           {"min_incidence_cosine", number(c.sampling.min_incidence_cosine, 1e-3, 1.0)},
           {"normal_neighbors", number(c.normals.neighbors, 5, 64)},
-          {"normal_radius_m", number(c.normals.max_radius_m, 1e-3, 100.0)}}},
+          {"normal_radius_m", number(c.normals.max_radius_m, 1e-4, 100.0)}}},
         {"training",
          {{"iterations", number(c.iterations, -1, 10000000)},
           {"batch_size", number(c.trainer.batch_size, 0, 1 << 22)},
-          {"sigma_m", number(c.trainer.sigma_m, 1e-4, 10.0)},
+          {"sigma_m", number(c.trainer.sigma_m, 1e-5, 10.0)},
           {"eikonal_weight", number(c.trainer.eikonal_weight, 0.0, 100.0)},
           {"learning_rate", number(c.trainer.feature_adam.learning_rate, 0.0, 10.0)},
           {"decoder_learning_rate", number(c.trainer.decoder_adam.learning_rate, 1e-7, 10.0)},
@@ -195,7 +211,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"mesh_every", number(c.incremental.mesh_every, 0, 1000000)},
           {"learning_rate", number(c.incremental.learning_rate, 1e-7, 10.0)},
           {"batch_size", number(c.incremental.batch_size, 1, 1 << 22)},
-          {"surface_band_m", number(c.incremental.surface_band_m, 1e-3, 10.0)},
+          {"surface_band_m", number(c.incremental.surface_band_m, 1e-4, 10.0)},
           {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)},
           {"normal_neighbors", number(c.incremental.normal_neighbors, 5, 64)},
           {"importance_ray_stride", number(c.incremental.importance_ray_stride, 1, 1000)},
@@ -227,6 +243,54 @@ MapperConfig::MapperConfig() {
     octree.interpolation = Interpolation::kLinear;
     sampling.surface_band_m = 0.1f;
 }
+
+ScenePreset MapperConfig::resolved_scene() const {
+    if (scene == "auto") return scene_for_leaf(octree.leaf_size_m);
+    if (scene == "outdoor" || scene == "indoor" || scene == "object") {
+        return parse_scene_preset(scene, "map.scene");
+    }
+    throw ConfigError("map.scene: expected 'auto', 'outdoor', 'indoor' or 'object', got '" + scene +
+                      "'");
+}
+
+namespace {
+
+/// The scale-free defaults (mapper_config.hpp): each length the user did not set and that still
+/// holds its outdoor default moves with the scene (ranges, leaf) or the leaf (the rest).
+void apply_scale_free_defaults(MapperConfig& c) {
+    const MapperConfig outdoor;
+    const SceneDefaults scene = scene_defaults(c.resolved_scene());
+    if (c.scene != "auto" && !c.is_set("map.leaf_size_m") &&
+        c.octree.leaf_size_m == outdoor.octree.leaf_size_m) {
+        c.octree.leaf_size_m = scene.leaf_size_m;
+    }
+    const auto from_scene = [&c](double& field, double outdoor_value, double scene_value,
+                                 const char* key) {
+        if (!c.is_set(key) && field == outdoor_value) field = scene_value;
+    };
+    from_scene(c.preprocess.min_range_m, outdoor.preprocess.min_range_m, scene.min_range_m,
+               "preprocess.min_range_m");
+    from_scene(c.preprocess.max_range_m, outdoor.preprocess.max_range_m, scene.max_range_m,
+               "preprocess.max_range_m");
+    // Exactly 1 at the outdoor leaf, so the street's lengths keep every bit.
+    const double scale = c.octree.leaf_size_m / outdoor.octree.leaf_size_m;
+    const auto follow_leaf = [&c, scale](auto& field, auto outdoor_value, const char* key) {
+        using T = std::decay_t<decltype(field)>;
+        if (!c.is_set(key) && field == outdoor_value) {
+            field = static_cast<T>(static_cast<double>(outdoor_value) * scale);
+        }
+    };
+    follow_leaf(c.preprocess.voxel_downsample_m, outdoor.preprocess.voxel_downsample_m,
+                "preprocess.voxel_downsample_m");
+    follow_leaf(c.sampling.surface_band_m, outdoor.sampling.surface_band_m,
+                "sampling.surface_band_m");
+    follow_leaf(c.normals.max_radius_m, outdoor.normals.max_radius_m, "sampling.normal_radius_m");
+    follow_leaf(c.trainer.sigma_m, outdoor.trainer.sigma_m, "training.sigma_m");
+    follow_leaf(c.incremental.surface_band_m, outdoor.incremental.surface_band_m,
+                "incremental.surface_band_m");
+}
+
+}  // namespace
 
 BatchSchedule MapperConfig::batch_schedule() const {
     // The automatic schedule, measured on the street (docs/performance.md); otherwise the
@@ -266,6 +330,7 @@ TrainerConfig MapperConfig::batch_trainer() const {
 }
 
 void MapperConfig::finalize() {
+    apply_scale_free_defaults(*this);
     decoder.input_dim = octree.feature_dim;
     octree.seed = seed;
     decoder.seed = seed ^ 0x5bd1e995u;
@@ -332,6 +397,7 @@ void parse_config_yaml(const std::string& text, const std::string& source, Mappe
             } catch (const ConfigError& e) {
                 throw ConfigError("'" + source + "': " + e.what());
             }
+            config.mark_set(full);
         }
     }
 }

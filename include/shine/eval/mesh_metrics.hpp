@@ -44,6 +44,14 @@ struct EvalConfig {
     std::uint64_t seed = 1;                        ///< sampling seed (results are reproducible)
 };
 
+/// EvalConfig for `threshold_m`. The protocol's other lengths are for the 0.1 m threshold of a
+/// street; below it (an object scored at 1 mm) they shrink with the threshold so that the metric
+/// still resolves it: downsample_m, accuracy_max_m and completion_cap_m scale by threshold /
+/// 0.1 m and the sampling density by its inverse square (still capped by max_samples_per_mesh).
+/// At 0.1 m and above (0.2 m for noisy street data) it is EvalConfig{} with that threshold, the
+/// protocol of DESIGN.md unchanged. Throws ConfigError for a threshold that is not positive.
+EvalConfig eval_config_for_threshold(double threshold_m);
+
 /// Result of evaluate_meshes(); distances in metres, ratios in [0, 1].
 struct MeshMetrics {
     double accuracy_m = 0.0;        ///< mean pred -> ref distance of pred points within

@@ -1,13 +1,27 @@
 // All settings of a mapping run in one struct with the paper's defaults (see DESIGN.md), and
 // their YAML form. Parsing rejects unknown keys and out-of-range values, naming the key.
+//
+// Scale-free defaults. The length defaults below are the outdoor ones at 0.2 m leaves. A user who
+// maps a room or an object sets only the leaf size (or only the scene): finalize() then moves
+// every length the user did not set (set_keys) --
+//   - with the leaf, in proportion to leaf / 0.2 m: preprocess.voxel_downsample_m,
+//     sampling.surface_band_m, sampling.normal_radius_m, training.sigma_m,
+//     incremental.surface_band_m (bake.voxel_size_m 0 is already half the leaf);
+//   - with the scene (map.scene, scene_preset.hpp; "auto" infers it from the leaf): the range
+//     crop preprocess.min_range_m / max_range_m, and the leaf itself when only the scene is given.
+// A 0.1 m outdoor map thus thins, samples and labels at half the street's lengths but still sees
+// 1.5 - 60 m; at 0.2 m outdoors nothing changes. Ratios, counts and the training schedule
+// (batch_schedule(), which already follows the leaf) are not lengths and stay as they are.
 #pragma once
 
 #include <filesystem>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "shine/bake/level_set_bake.hpp"
 #include "shine/io/preprocess.hpp"
+#include "shine/io/scene_preset.hpp"
 #include "shine/map/feature_octree.hpp"
 #include "shine/mapper/incremental_config.hpp"
 #include "shine/mapper/trainer.hpp"
@@ -69,6 +83,21 @@ struct MapperConfig {
     std::vector<double> crop_world_m;
     int threads = 0;          ///< 0: all hardware threads
     std::uint64_t seed = 42;  ///< one seed for features, decoder and sampling
+    /// The kind of scene: "outdoor", "indoor", "object" (scene_preset.hpp), or "auto" (the
+    /// default): the one the leaf size suggests (scene_for_leaf). It decides the range crop and,
+    /// when map.leaf_size_m is not set, the leaf size. YAML: map.scene.
+    std::string scene = "auto";
+    /// Keys ("section.key", as in YAML) the user set, in a file or with a flag: finalize() keeps
+    /// their values. parse_config_yaml() adds every key it reads; the CLI calls mark_set().
+    std::set<std::string> set_keys;
+
+    /// Records that the user set `key` ("map.leaf_size_m").
+    void mark_set(const std::string& key) { set_keys.insert(key); }
+    /// Whether the user set `key`.
+    bool is_set(const std::string& key) const { return set_keys.count(key) > 0; }
+    /// The scene `scene` names, or for "auto" the one the leaf size suggests. Throws ConfigError
+    /// naming map.scene for an unknown name.
+    ScenePreset resolved_scene() const;
 
     /// Batch mode's samples per step, learning rate and steps. With `iterations` and
     /// trainer.batch_size both automatic (the defaults), the automatic schedule: 32768 samples
@@ -87,7 +116,9 @@ struct MapperConfig {
     /// `trainer` with batch_schedule()'s samples per step and learning rate.
     TrainerConfig batch_trainer() const;
 
-    /// Copies feature_dim/seed into the sub-configs that repeat them, and checks ranges.
+    /// Applies the scale-free defaults (file comment) to the lengths the user did not set, copies
+    /// feature_dim/seed into the sub-configs that repeat them, and checks ranges. Idempotent: a
+    /// length is moved only while it still holds its outdoor default.
     void finalize();
 };
 

@@ -1,0 +1,154 @@
+// Scale-free defaults (mapper_config.hpp, scene_preset.hpp): every length default of a mapping
+// run follows the leaf size in proportion to its outdoor value at 0.2 m, unless the user set it;
+// the scene preset (given, or inferred from the leaf) decides the range crop.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "shine/core/error.hpp"
+#include "shine/mapper/mapper_config.hpp"
+
+namespace shine {
+namespace {
+
+/// Lengths computed as outdoor value * (leaf / 0.2) in double and stored in float: float keeps
+/// ~7 digits, 1e-8 m on lengths below 0.3 m.
+constexpr double kFloatToleranceM = 1e-7;
+
+MapperConfig finalized(const std::string& yaml) {
+    MapperConfig config;
+    parse_config_yaml(yaml, "test.yaml", config);
+    config.finalize();
+    return config;
+}
+
+TEST(MapperConfigScale, OutdoorDefaultsAtTwentyCentimetresAreUntouched) {
+    const MapperConfig defaults;
+    MapperConfig config;
+    config.finalize();
+    EXPECT_EQ(config.resolved_scene(), ScenePreset::kOutdoor);
+    // Bit for bit: the bundled street's mesh must not change.
+    EXPECT_EQ(config.octree.leaf_size_m, 0.2);
+    EXPECT_EQ(config.preprocess.min_range_m, 1.5);
+    EXPECT_EQ(config.preprocess.max_range_m, 60.0);
+    EXPECT_EQ(config.preprocess.voxel_downsample_m, 0.2);
+    EXPECT_EQ(config.sampling.surface_band_m, 0.3f);
+    EXPECT_EQ(config.normals.max_radius_m, 1.0f);
+    EXPECT_EQ(config.trainer.sigma_m, 0.05f);
+    EXPECT_EQ(config.incremental.surface_band_m, 0.15f);
+    EXPECT_EQ(config_to_yaml(config), config_to_yaml(defaults));
+}
+
+TEST(MapperConfigScale, UnsetLengthsFollowTheLeafFromYaml) {
+    const MapperConfig c = finalized("map:\n  leaf_size_m: 0.003\n");
+    const double s = 0.003 / 0.2;
+    EXPECT_EQ(c.resolved_scene(), ScenePreset::kObject);  // inferred from the leaf
+    EXPECT_NEAR(c.preprocess.voxel_downsample_m, 0.2 * s, kFloatToleranceM);
+    EXPECT_NEAR(c.sampling.surface_band_m, 0.3 * s, kFloatToleranceM);
+    EXPECT_NEAR(c.normals.max_radius_m, 1.0 * s, kFloatToleranceM);
+    EXPECT_NEAR(c.trainer.sigma_m, 0.05 * s, kFloatToleranceM);
+    EXPECT_NEAR(c.incremental.surface_band_m, 0.15 * s, kFloatToleranceM);
+    // Ranges come from the object preset, not from the leaf.
+    EXPECT_EQ(c.preprocess.min_range_m, 0.1);
+    EXPECT_EQ(c.preprocess.max_range_m, 3.0);
+    // Ratios and counts do not change.
+    const MapperConfig defaults;
+    EXPECT_EQ(c.sampling.free_space_start_ratio, defaults.sampling.free_space_start_ratio);
+    EXPECT_EQ(c.normals.neighbors, defaults.normals.neighbors);
+    EXPECT_EQ(c.bake.voxel_size_m, 0.0);  // 0 = half the leaf, already relative
+}
+
+TEST(MapperConfigScale, OutdoorTenCentimetreLeavesKeepTheRanges) {
+    const MapperConfig c = finalized("map:\n  leaf_size_m: 0.1\n");
+    EXPECT_EQ(c.resolved_scene(), ScenePreset::kOutdoor);
+    EXPECT_EQ(c.preprocess.min_range_m, 1.5);
+    EXPECT_EQ(c.preprocess.max_range_m, 60.0);
+    EXPECT_NEAR(c.preprocess.voxel_downsample_m, 0.1, kFloatToleranceM);
+    EXPECT_NEAR(c.sampling.surface_band_m, 0.15, kFloatToleranceM);
+    EXPECT_NEAR(c.trainer.sigma_m, 0.025, kFloatToleranceM);
+}
+
+TEST(MapperConfigScale, SetKeysDoNotFollow) {
+    // Set to another value, and set to the outdoor default's own value: both are kept.
+    const MapperConfig c = finalized(
+        "map:\n  leaf_size_m: 0.003\n"
+        "sampling:\n  surface_band_m: 0.01\n  normal_radius_m: 1.0\n"
+        "training:\n  sigma_m: 0.05\n"
+        "preprocess:\n  min_range_m: 0.5\n  voxel_downsample_m: 0\n");
+    EXPECT_EQ(c.sampling.surface_band_m, 0.01f);
+    EXPECT_EQ(c.normals.max_radius_m, 1.0f);
+    EXPECT_EQ(c.trainer.sigma_m, 0.05f);
+    EXPECT_EQ(c.preprocess.min_range_m, 0.5);
+    EXPECT_EQ(c.preprocess.voxel_downsample_m, 0.0);
+    // The unset ones still follow.
+    EXPECT_EQ(c.preprocess.max_range_m, 3.0);
+    EXPECT_NEAR(c.incremental.surface_band_m, 0.15 * 0.015, kFloatToleranceM);
+}
+
+TEST(MapperConfigScale, SceneAloneChoosesLeafAndRanges) {
+    const MapperConfig object = finalized("map:\n  scene: object\n");
+    EXPECT_EQ(object.octree.leaf_size_m, 0.003);
+    EXPECT_EQ(object.preprocess.max_range_m, 3.0);
+    EXPECT_NEAR(object.sampling.surface_band_m, 0.3 * 0.015, kFloatToleranceM);
+    const MapperConfig indoor = finalized("map:\n  scene: indoor\n");
+    EXPECT_EQ(indoor.octree.leaf_size_m, 0.05);
+    EXPECT_EQ(indoor.preprocess.min_range_m, 0.3);
+    EXPECT_EQ(indoor.preprocess.max_range_m, 20.0);
+    // A set leaf wins over the preset's; the preset still decides the ranges.
+    const MapperConfig outdoor_fine = finalized("map:\n  scene: outdoor\n  leaf_size_m: 0.05\n");
+    EXPECT_EQ(outdoor_fine.octree.leaf_size_m, 0.05);
+    EXPECT_EQ(outdoor_fine.preprocess.min_range_m, 1.5);
+    EXPECT_NEAR(outdoor_fine.sampling.surface_band_m, 0.075, kFloatToleranceM);
+}
+
+TEST(MapperConfigScale, FinalizeTwiceAndTheStoredYamlGiveTheSameConfig) {
+    MapperConfig c = finalized("map:\n  leaf_size_m: 0.003\n");
+    const std::string once = config_to_yaml(c);
+    c.finalize();
+    EXPECT_EQ(config_to_yaml(c), once);
+    // map.vdb and checkpoints store config_to_yaml(): reading it back reproduces the run.
+    MapperConfig back;
+    parse_config_yaml(once, "stored", back);
+    back.finalize();
+    EXPECT_EQ(config_to_yaml(back), once);
+}
+
+TEST(MapperConfigScale, CommandLineMarksAreSetKeys) {
+    // What `shine map --leaf-size-m 0.003` does: the flag is a set key like a YAML one.
+    MapperConfig c;
+    c.octree.leaf_size_m = 0.003;
+    c.mark_set("map.leaf_size_m");
+    c.sampling.surface_band_m = 0.3f;  // e.g. a flag that sets the default value on purpose
+    c.mark_set("sampling.surface_band_m");
+    c.finalize();
+    EXPECT_EQ(c.sampling.surface_band_m, 0.3f);
+    EXPECT_NEAR(c.trainer.sigma_m, 0.05 * 0.015, kFloatToleranceM);
+    EXPECT_TRUE(c.is_set("map.leaf_size_m"));
+    EXPECT_FALSE(c.is_set("training.sigma_m"));
+}
+
+TEST(MapperConfigScale, BadSceneNamesTheKey) {
+    MapperConfig c;
+    try {
+        parse_config_yaml("map:\n  scene: forest\n", "test.yaml", c);
+        FAIL() << "accepted scene 'forest'";
+    } catch (const ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("map.scene"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("object"), std::string::npos) << e.what();
+    }
+    MapperConfig direct;
+    direct.scene = "street";
+    EXPECT_THROW(direct.finalize(), ConfigError);
+}
+
+TEST(MapperConfigScale, AutomaticScheduleAtThreeMillimetresIsCapped) {
+    // 250 * (0.2 / 0.003)^1.5 = 136,000 steps, capped at 6250 steps of 32768 samples.
+    const MapperConfig c = finalized("map:\n  leaf_size_m: 0.003\n");
+    const BatchSchedule schedule = c.batch_schedule();
+    EXPECT_EQ(schedule.iterations, 6250);
+    EXPECT_EQ(schedule.batch_size, 32768);
+    EXPECT_EQ(finalized("map:\n  leaf_size_m: 0.1\n").batch_schedule().iterations, 707);
+}
+
+}  // namespace
+}  // namespace shine
