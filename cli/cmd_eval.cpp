@@ -90,8 +90,8 @@ const RegisterCommand kEvalCommand(50, [](CLI::App& app, Action& action) {
                     "reference mesh (PLY; optional uchar face property 'observed')");
     cmd->add_option("--threshold-m", options->config.threshold_m,
                     "distance threshold of precision and completion ratio, and of a good held-out "
-                    "range, m (0.2 for noisy data; below 0.1 the sampling density, 2 cm "
-                    "downsampling and distance caps shrink with it, e.g. 0.001 for an object)")
+                    "range, m (0.2 for noisy data; below 0.1 the sampling density and 2 cm "
+                    "downsampling shrink with it, e.g. 0.001 for an object)")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_option("--seed", options->config.seed, "seed of the surface sampling")

@@ -1,5 +1,5 @@
-// shine eval at object scale: below the street's 0.1 m threshold the protocol's other lengths
-// (2 cm downsampling, 1 point per cm^2, accuracy and completion caps) shrink with the threshold
+// shine eval at object scale: below the street's 0.1 m threshold the protocol's sampling
+// (2 cm downsampling, 1 point per cm^2) shrinks with the threshold
 // (eval_config_for_threshold, mesh_metrics.hpp), so that a 1 mm F-score resolves 1 mm.
 #include <gtest/gtest.h>
 
@@ -42,8 +42,8 @@ TEST(MeshMetricsThreshold, StreetThresholdsKeepTheProtocol) {
     }
     const EvalConfig mm = eval_config_for_threshold(0.001);
     EXPECT_DOUBLE_EQ(mm.downsample_m, 0.0002);
-    EXPECT_DOUBLE_EQ(mm.accuracy_max_m, 0.002);
-    EXPECT_DOUBLE_EQ(mm.completion_cap_m, 0.02);
+    EXPECT_EQ(mm.accuracy_max_m, EvalConfig{}.accuracy_max_m);  // outlier caps stay
+    EXPECT_EQ(mm.completion_cap_m, EvalConfig{}.completion_cap_m);
     EXPECT_DOUBLE_EQ(mm.sample_density_per_m2, 1e8);
     EXPECT_THROW(eval_config_for_threshold(0.0), ConfigError);
 }

@@ -78,8 +78,6 @@ EvalConfig eval_config_for_threshold(double threshold_m) {
     if (threshold_m >= street_threshold_m) return config;
     const double scale = threshold_m / street_threshold_m;
     config.downsample_m *= scale;
-    config.accuracy_max_m *= scale;
-    config.completion_cap_m *= scale;
     config.sample_density_per_m2 /= scale * scale;
     return config;
 }

@@ -44,12 +44,13 @@ struct EvalConfig {
     std::uint64_t seed = 1;                        ///< sampling seed (results are reproducible)
 };
 
-/// EvalConfig for `threshold_m`. The protocol's other lengths are for the 0.1 m threshold of a
-/// street; below it (an object scored at 1 mm) they shrink with the threshold so that the metric
-/// still resolves it: downsample_m, accuracy_max_m and completion_cap_m scale by threshold /
-/// 0.1 m and the sampling density by its inverse square (still capped by max_samples_per_mesh).
-/// At 0.1 m and above (0.2 m for noisy street data) it is EvalConfig{} with that threshold, the
-/// protocol of DESIGN.md unchanged. Throws ConfigError for a threshold that is not positive.
+/// EvalConfig for `threshold_m`. The protocol's sampling is for the 0.1 m threshold of a street;
+/// below it (an object scored at 1 mm) the sampling shrinks with the threshold so that the metric
+/// still resolves it: downsample_m scales by threshold / 0.1 m and the sampling density by its
+/// inverse square (still capped by max_samples_per_mesh). The outlier caps accuracy_max_m (0.2 m)
+/// and completion_cap_m (2 m) stay the protocol's. At 0.1 m and above (0.2 m for noisy street
+/// data) it is EvalConfig{} with that threshold, the protocol of DESIGN.md unchanged. Throws
+/// ConfigError for a threshold that is not positive.
 EvalConfig eval_config_for_threshold(double threshold_m);
 
 /// Result of evaluate_meshes(); distances in metres, ratios in [0, 1].
