@@ -101,6 +101,32 @@ TEST(Resume, IncrementalRunStoppedAfterAFrameContinuesToTheSameMap) {
     EXPECT_EQ(stats.at("incremental").at("frames").size(), 4u);
 }
 
+TEST(Resume, IncrementalRunReplayingEarlierScansContinuesToTheSameMap) {
+    // With incremental.replay_frames 3 the scans before the stop train again after the resume,
+    // with the normals they got when they were current.
+    const fs::path replay = test_dir() / "replay.yaml";
+    std::ofstream(replay) << "incremental:\n"
+                             "  iterations_per_frame: 25\n"
+                             "  replay_frames: 3\n";
+    const auto args = [&](const fs::path& out, const std::string& extra) {
+        return "map '" + street().string() + "' -o '" + out.string() + "' -c '" + replay.string() +
+               "' -q --mode incremental --threads 2 " + extra;
+    };
+    const fs::path reference = test_dir() / "reference_replay";
+    fs::remove_all(reference);
+    const CliResult ref = run(args(reference, ""));
+    ASSERT_EQ(ref.exit_code, 0) << ref.output;
+    const fs::path out = test_dir() / "out_replay";
+    fs::remove_all(out);
+    expect_stopped_without_products(run(args(out, "--interrupt-after 3")), out);
+    const CliResult r = run("map --resume '" + out.string() + "' -q --threads 1");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    expect_same_result(out, reference);
+    // The replay changes the map: the same run without it differs.
+    const fs::path plain = reference_run("incremental_plain", "--mode incremental --threads 2");
+    EXPECT_FALSE(read_text(plain / "mesh.ply") == read_text(reference / "mesh.ply"));
+}
+
 TEST(Resume, BatchRunStoppedDuringTrainingContinuesToTheSameMap) {
     const fs::path reference = reference_run("batch", "--threads 2");
     const fs::path out = test_dir() / "out";

@@ -357,3 +357,18 @@ TEST(IncrementalMapper, SameMapForAnyThreadCount) {
     EXPECT_EQ(features[0], features[1]);
     EXPECT_EQ(importances[0], importances[1]);
 }
+
+TEST(IncrementalMapper, ReplayBeyondTheNormalWindowIsRejectedNamingTheKey) {
+    MapperConfig config;
+    config.incremental.normal_window_frames = 4;
+    config.incremental.replay_frames = 5;  // the window keeps only 4 scans
+    try {
+        IncrementalMapper mapper(config);
+        FAIL() << "expected a ConfigError";
+    } catch (const ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("incremental.replay_frames"), std::string::npos)
+            << e.what();
+    }
+    config.incremental.replay_frames = 4;
+    EXPECT_NO_THROW(IncrementalMapper{config});
+}

@@ -74,6 +74,13 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     if (inc.importance_ray_stride < 1) {
         throw ConfigError("incremental.importance_ray_stride must be at least 1");
     }
+    if (inc.replay_frames < 1 || inc.replay_frames > inc.normal_window_frames) {
+        throw ConfigError(
+            "incremental.replay_frames must be between 1 and "
+            "incremental.normal_window_frames (" +
+            std::to_string(inc.normal_window_frames) + "), got " +
+            std::to_string(inc.replay_frames));
+    }
     if (inc.normal_window_frames < 1) {
         throw ConfigError("incremental.normal_window_frames must be at least 1");
     }
@@ -111,14 +118,55 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
     frame.allocate_seconds = seconds_since(start);
 
     window_.push_back(std::move(current));
+    window_normals_.emplace_back();
     while (window_.size() > static_cast<std::size_t>(config_.incremental.normal_window_frames)) {
         window_.pop_front();
+        window_normals_.pop_front();
     }
+}
+
+std::size_t IncrementalMapper::window_rays_with_normals(RaySet& rays,
+                                                        IncrementalFrameStats& frame) {
+    for (const ScanInMap& s : window_) rays.add_scan(s.origin_map, s.points_map);
+    const std::size_t ray_begin = rays.first_ray(static_cast<std::uint32_t>(window_.size() - 1));
+    const std::size_t ray_end = rays.num_rays();
+
+    // 3. Normals of the current scan, among the window's endpoints; the replayed scans keep the
+    // ones they got when they were current.
+    const auto start = std::chrono::steady_clock::now();
+    if (config_.normals.enabled) {
+        std::vector<Eigen::Vector3f> normals =
+            ray_end > ray_begin ? estimate_ray_normals(rays, config_.normals, ray_begin, ray_end)
+                                : std::vector<Eigen::Vector3f>(ray_end, Eigen::Vector3f::Zero());
+        for (std::size_t r = ray_begin; r < ray_end; ++r) {
+            frame.rays_with_normal += normals[r].squaredNorm() > 0.5f;
+        }
+        window_normals_.back().assign(normals.begin() + static_cast<std::ptrdiff_t>(ray_begin),
+                                      normals.end());
+        const std::size_t replayed =
+            std::min<std::size_t>(window_.size(), std::size_t(config_.incremental.replay_frames));
+        for (std::size_t w = window_.size() - replayed; w + 1 < window_.size(); ++w) {
+            const std::vector<Eigen::Vector3f>& stored = window_normals_[w];
+            if (stored.empty()) continue;  // a scan from before a resume without replay
+            std::copy(stored.begin(), stored.end(),
+                      normals.begin() + static_cast<std::ptrdiff_t>(
+                                            rays.first_ray(static_cast<std::uint32_t>(w))));
+        }
+        rays.set_normals(std::move(normals));
+    }
+    frame.normals_seconds = seconds_since(start);
+    return ray_begin;
 }
 
 void IncrementalMapper::replay_scan(const Scan& scan) {
     IncrementalFrameStats frame;
     preprocess_and_allocate(scan, frame);
+    if (config_.incremental.replay_frames > 1) {
+        // The replayed scans' normals are trained on again by the next scans: estimate them as
+        // when the scan was current, so that a resumed run trains exactly as an uninterrupted one.
+        RaySet rays;
+        window_rays_with_normals(rays, frame);
+    }
     frames_.push_back(frame);  // compared with the stored frames by load_state()
 }
 
@@ -128,24 +176,15 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     preprocess_and_allocate(scan, frame);
 
     RaySet rays;
-    for (const ScanInMap& s : window_) rays.add_scan(s.origin_map, s.points_map);
-    const std::size_t ray_begin = rays.first_ray(static_cast<std::uint32_t>(window_.size() - 1));
+    const std::size_t ray_begin = window_rays_with_normals(rays, frame);
     const std::size_t ray_end = rays.num_rays();
+    const std::size_t replayed =
+        std::min<std::size_t>(window_.size(), std::size_t(config_.incremental.replay_frames));
+    const std::size_t train_begin =
+        rays.first_ray(static_cast<std::uint32_t>(window_.size() - replayed));
 
-    // 3. Normals of the current scan, among the window's endpoints.
+    // 4. Train on the current scan (and the replayed ones before it).
     auto start = std::chrono::steady_clock::now();
-    if (config_.normals.enabled && ray_end > ray_begin) {
-        std::vector<Eigen::Vector3f> normals =
-            estimate_ray_normals(rays, config_.normals, ray_begin, ray_end);
-        for (std::size_t r = ray_begin; r < ray_end; ++r) {
-            frame.rays_with_normal += normals[r].squaredNorm() > 0.5f;
-        }
-        rays.set_normals(std::move(normals));
-    }
-    frame.normals_seconds = seconds_since(start);
-
-    // 4. Train on the current scan only.
-    start = std::chrono::steady_clock::now();
     trainer_->reset_seconds();
     trainer_->begin_scan();
     const ImportanceWeights* regularizer = importance_.enabled() ? &importance_ : nullptr;
@@ -162,7 +201,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
             const double ratio =
                 final_ratio + (1.0 - final_ratio) * 0.5 * (1.0 + std::cos(M_PI * progress));
             trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
-            last = trainer_->step(rays, ray_begin, ray_end, iteration_++, regularizer);
+            last = trainer_->step(rays, train_begin, ray_end, iteration_++, regularizer);
         }
         frame.bce = last.bce;
         frame.regularization = last.regularization;
@@ -233,6 +272,7 @@ void IncrementalMapper::release_training_state() {
     trainer_.reset();
     importance_ = ImportanceWeights();
     window_ = {};
+    window_normals_ = {};
     sdf_->octree.compact_structure();
 #if defined(__GLIBC__)
     malloc_trim(0);  // hand the freed pages back, so that the products find them free

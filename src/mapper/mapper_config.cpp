@@ -214,6 +214,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"surface_band_m", number(c.incremental.surface_band_m, 1e-4, 10.0)},
           {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)},
           {"normal_neighbors", number(c.incremental.normal_neighbors, 5, 64)},
+          {"replay_frames", number(c.incremental.replay_frames, 1, 100)},
           {"importance_ray_stride", number(c.incremental.importance_ray_stride, 1, 1000)},
           {"active_frames", number(c.incremental.active_frames, 0, 100000000)}}},
         {"bake",

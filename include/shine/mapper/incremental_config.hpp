@@ -40,6 +40,13 @@ struct IncrementalConfig {
     /// time (docs/performance.md).
     int normal_window_frames = 7;
     int normal_neighbors = 10;
+    /// Each scan's steps draw their samples from the rays of this many most recent scans, the
+    /// current one included (1: the current scan alone, as the paper; at most
+    /// normal_window_frames, whose scans are kept anyway). The regulariser still weighs only
+    /// what the current scan touched (Eq. (4)). Replaying the last scans averages their noise and
+    /// small pose errors the way batch mode does, where one scan alone pulls the surface to its
+    /// own points (measured in docs/incremental.md).
+    int replay_frames = 1;
     /// The importance pass (Eq. (4)) uses every n-th ray of the scan: Omega grows by the mean
     /// gradient norm over the scan's samples (see importance_weights.hpp), which a subsample
     /// estimates (every 16th ray: 0.05 points below every 8th on the street, in half the time;

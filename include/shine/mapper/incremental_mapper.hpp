@@ -30,6 +30,7 @@
 #include "shine/model/decoder.hpp"
 #include "shine/model/neural_sdf.hpp"
 #include "shine/optim/importance_weights.hpp"
+#include "shine/sampling/ray_set.hpp"
 
 namespace shine {
 
@@ -105,6 +106,10 @@ class IncrementalMapper {
   private:
     /// Steps 1-2 of add_scan(): fills frame.rays, new_corners, preprocess and allocate seconds.
     void preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame);
+    /// The window's rays (the current scan last) with every scan's normals: the earlier scans'
+    /// as stored, the current scan's estimated now (step 3) and stored for the scans after it.
+    /// Returns the current scan's first ray.
+    std::size_t window_rays_with_normals(RaySet& rays, IncrementalFrameStats& frame);
     /// Throws Error naming `what` once release_training_state() has run.
     void require_training_state(const char* what) const;
 
@@ -113,6 +118,9 @@ class IncrementalMapper {
     std::unique_ptr<Trainer> trainer_;
     ImportanceWeights importance_;
     std::deque<ScanInMap> window_;  ///< the current scan last
+    /// The endpoint normals of window_'s scans, each estimated when its scan was the current one
+    /// (empty with normals disabled).
+    std::deque<std::vector<Eigen::Vector3f>> window_normals_;
     std::vector<IncrementalFrameStats> frames_;
     MappingStats stats_;
     std::uint64_t iteration_ = 0;
