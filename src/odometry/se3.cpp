@@ -8,9 +8,10 @@ namespace shine {
 namespace se3_internal {
 namespace {
 
-// Below this rotation angle (radians) the coefficients of Rodrigues' formula and of V are
-// replaced by their Taylor series: the closed forms lose all precision to cancellation there.
-constexpr double kSmallAngleRad = 1e-4;
+// Below this rotation angle (radians) the coefficients of Rodrigues' formula, of V and of V^-1
+// are replaced by their Taylor series (to the t^4 term, whose successor is below 1e-16 here):
+// the closed forms of c and d lose digits to cancellation at small angles.
+constexpr double kSmallAngleRad = 1e-2;
 
 /// Coefficients of exp: R = I + a [phi]x + b [phi]x^2, V = I + b [phi]x + c [phi]x^2.
 struct ExpCoefficients {
@@ -20,9 +21,13 @@ struct ExpCoefficients {
 ExpCoefficients exp_coefficients(double t) {
     const double t2 = t * t;
     if (t < kSmallAngleRad) {
-        return {1.0 - t2 / 6.0, 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0};
+        const double t4 = t2 * t2;
+        return {1.0 - t2 / 6.0 + t4 / 120.0, 0.5 - t2 / 24.0 + t4 / 720.0,
+                1.0 / 6.0 - t2 / 120.0 + t4 / 5040.0};
     }
-    return {std::sin(t) / t, (1.0 - std::cos(t)) / t2, (t - std::sin(t)) / (t2 * t)};
+    // b = (1 - cos t) / t^2 written as 2 sin^2(t/2) / t^2, free of cancellation.
+    const double half_sinc = std::sin(0.5 * t) / (0.5 * t);
+    return {std::sin(t) / t, 0.5 * half_sinc * half_sinc, (t - std::sin(t)) / (t2 * t)};
 }
 
 }  // namespace
@@ -69,13 +74,14 @@ Vector6d se3_log(const Eigen::Isometry3d& T) {
     const Eigen::Vector3d phi = so3_log(T.linear());
     const double t = phi.norm();
     const Eigen::Matrix3d W = skew(phi);
-    // V^-1 = I - 1/2 [phi]x + d [phi]x^2 with d = (1 - a / (2 b)) / t^2 (Barfoot Eq. (7.87)).
+    // V^-1 = I - 1/2 [phi]x + d [phi]x^2 with d = (1 - a / (2 b)) / t^2 (Barfoot Eq. (7.87)),
+    // where a / (2 b) = (t/2) cot(t/2).
     double d;
+    const double t2 = t * t;
     if (t < se3_internal::kSmallAngleRad) {
-        d = 1.0 / 12.0 + t * t / 720.0;
+        d = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0;
     } else {
-        const auto k = se3_internal::exp_coefficients(t);
-        d = (1.0 - k.a / (2.0 * k.b)) / (t * t);
+        d = (1.0 - 0.5 * t / std::tan(0.5 * t)) / t2;
     }
     const Eigen::Matrix3d V_inv = Eigen::Matrix3d::Identity() - 0.5 * W + d * W * W;
     Vector6d xi;
