@@ -182,17 +182,17 @@ int run_eval_poses(const EvalPosesOptions& options) {
                 rpe.kitti_lengths ? "KITTI lengths 100..800 m that fit"
                                   : "path shorter than 100 m: 10..80 % of its length",
                 options.step_frames);
-    std::printf("  %10s  %8s  %14s  %14s\n", "length m", "segments", "translation %",
+    std::printf("  %10s  %8s  %14s  %17s\n", "length m", "segments", "translation %",
                 "rotation deg/100m");
     for (const auto& row : rpe.per_length) {
         if (row.num_segments == 0) {
-            std::printf("  %10.1f  %8zu  %14s  %14s\n", row.length_m, row.num_segments, "-", "-");
+            std::printf("  %10.1f  %8zu  %14s  %17s\n", row.length_m, row.num_segments, "-", "-");
             continue;
         }
-        std::printf("  %10.1f  %8zu  %14.4f  %14.4f\n", row.length_m, row.num_segments,
+        std::printf("  %10.1f  %8zu  %14.4f  %17.4f\n", row.length_m, row.num_segments,
                     row.translation_percent, row.rotation_deg_per_100m);
     }
-    std::printf("  %10s  %8zu  %14.4f  %14.4f\n", "all", rpe.num_segments, rpe.translation_percent,
+    std::printf("  %10s  %8zu  %14.4f  %17.4f\n", "all", rpe.num_segments, rpe.translation_percent,
                 rpe.rotation_deg_per_100m);
     return 0;
 }
