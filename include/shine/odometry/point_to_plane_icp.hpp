@@ -1,0 +1,77 @@
+// Point-to-plane ICP of a scan against reference points in the world frame: the registration
+// while the neural map is too young to register against (Chen and Medioni 1992; Low 2004).
+//
+// Each scan point (at the current pose) is matched to the nearest reference point within
+// max_correspondence_distance_m that has a normal; its residual is the signed distance to that
+// point's tangent plane, r = n . (T p - q), whose world gradient is n. The matches are found
+// again at every pose the solver tries, so the residuals, the robust kernel, the Jacobian and the
+// failure rules are those of registration_solver.hpp.
+//
+// Reference normals come from a principal component analysis of each point's nearest neighbours
+// (sampling/surface_normals.hpp's fit_plane_normal: none where the neighbourhood is not a plane),
+// or from the caller. Positions are stored relative to the first reference point, so that the
+// float k-d tree keeps millimetres on far-away (UTM) coordinates.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <vector>
+
+#include "shine/odometry/registration_solver.hpp"
+#include "shine/sampling/point_kdtree.hpp"
+
+namespace shine {
+
+/// How reference normals are estimated.
+struct PlaneFitConfig {
+    int neighbors = 10;         ///< k nearest reference points (at least 5)
+    double max_radius_m = 1.0;  ///< neighbours farther than this are not used
+};
+
+/// Reference points with unit normals (world frame), searchable by nearest neighbour; immutable
+/// once built, so one instance serves every iteration and thread.
+class ReferencePlanes {
+  public:
+    /// Normals by PCA of each point's neighbourhood; points without a plane are not matched.
+    /// Throws ConfigError for neighbors < 5 or a non-positive radius.
+    ReferencePlanes(const std::vector<Eigen::Vector3d>& points_world, const PlaneFitConfig& fit);
+    /// Normals given per point (unit length; a zero normal means the point is not matched).
+    /// Throws DataError if the counts differ.
+    ReferencePlanes(const std::vector<Eigen::Vector3d>& points_world,
+                    const std::vector<Eigen::Vector3d>& normals_world);
+
+    /// Points that have a normal (and can be matched).
+    std::size_t size() const { return points_world_.size(); }
+    const std::vector<Eigen::Vector3d>& points_world() const { return points_world_; }
+    const std::vector<Eigen::Vector3d>& normals_world() const { return normals_world_; }
+
+    /// Index (into points_world()) of the nearest matchable point within max_distance_m of
+    /// `query_world`, or -1.
+    long nearest(const Eigen::Vector3d& query_world, double max_distance_m) const;
+
+  private:
+    void build_tree();
+
+    Eigen::Vector3d origin_world_ = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> points_world_;
+    std::vector<Eigen::Vector3d> normals_world_;
+    PointKdTree tree_;
+};
+
+/// Configuration of register_point_to_plane.
+struct PointToPlaneIcpConfig {
+    double max_correspondence_distance_m = 1.0;  ///< farther scan points have no match
+    RegistrationSolverConfig solver;             ///< kernel scale: metres off the plane
+};
+
+/// The pose T_world_sensor that puts `points_sensor` on the planes of `reference`, by
+/// Levenberg-Marquardt from `T_world_sensor_initial`. On failure (result.accepted() false) the
+/// result's pose is the initial one. Throws ConfigError for a non-positive correspondence
+/// distance or an invalid solver configuration.
+RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& points_sensor,
+                                           const Eigen::Isometry3d& T_world_sensor_initial,
+                                           const ReferencePlanes& reference,
+                                           const PointToPlaneIcpConfig& config);
+
+}  // namespace shine

@@ -1,0 +1,133 @@
+// Point-to-plane ICP on the shared Levenberg-Marquardt solver.
+#include "shine/odometry/point_to_plane_icp.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "shine/core/error.hpp"
+#include "shine/sampling/surface_normals.hpp"
+
+namespace shine {
+
+namespace point_to_plane_icp_internal {
+namespace {
+
+std::vector<IndexedPoint> indexed_relative(const std::vector<Eigen::Vector3d>& points_world,
+                                           const Eigen::Vector3d& origin_world) {
+    std::vector<IndexedPoint> points(points_world.size());
+    for (std::size_t i = 0; i < points_world.size(); ++i) {
+        points[i].position = (points_world[i] - origin_world).cast<float>();
+        points[i].index = static_cast<std::uint32_t>(i);
+    }
+    return points;
+}
+
+}  // namespace
+}  // namespace point_to_plane_icp_internal
+
+ReferencePlanes::ReferencePlanes(const std::vector<Eigen::Vector3d>& points_world,
+                                 const PlaneFitConfig& fit) {
+    using point_to_plane_icp_internal::indexed_relative;
+    if (fit.neighbors < 5 || fit.neighbors > PointKdTree::kMaxNeighbors) {
+        throw ConfigError("plane fit neighbors must be in [5, " +
+                          std::to_string(PointKdTree::kMaxNeighbors) + "] (got " +
+                          std::to_string(fit.neighbors) + ")");
+    }
+    if (!(fit.max_radius_m > 0.0)) {
+        throw ConfigError("plane fit max_radius_m must be positive (got " +
+                          std::to_string(fit.max_radius_m) + ")");
+    }
+    if (points_world.empty()) return;
+    origin_world_ = points_world.front();
+    const PointKdTree all(indexed_relative(points_world, origin_world_));
+    NormalConfig plane;
+    plane.neighbors = fit.neighbors;
+    plane.max_radius_m = static_cast<float>(fit.max_radius_m);
+    std::vector<Eigen::Vector3d> normals(points_world.size(), Eigen::Vector3d::Zero());
+    const float max_sq = static_cast<float>(fit.max_radius_m * fit.max_radius_m);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, points_world.size(), 256),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            PointNeighbor found[PointKdTree::kMaxNeighbors];
+            for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                const Eigen::Vector3f q = (points_world[i] - origin_world_).cast<float>();
+                const int count = all.nearest(q, fit.neighbors, max_sq, found);
+                // The orientation does not matter to a point-to-plane residual:
+                // the sensor argument equals the point, so no flip happens.
+                normals[i] = fit_plane_normal(
+                                 count, [&](int k) { return found[k].position; }, q, q, plane)
+                                 .cast<double>();
+            }
+        });
+    for (std::size_t i = 0; i < points_world.size(); ++i) {
+        if (normals[i].squaredNorm() > 0.0) {
+            points_world_.push_back(points_world[i]);
+            normals_world_.push_back(normals[i]);
+        }
+    }
+    build_tree();
+}
+
+ReferencePlanes::ReferencePlanes(const std::vector<Eigen::Vector3d>& points_world,
+                                 const std::vector<Eigen::Vector3d>& normals_world) {
+    if (points_world.size() != normals_world.size()) {
+        throw DataError("reference planes: " + std::to_string(points_world.size()) +
+                        " points but " + std::to_string(normals_world.size()) +
+                        " normals; give one normal per point");
+    }
+    for (std::size_t i = 0; i < points_world.size(); ++i) {
+        const double norm = normals_world[i].norm();
+        if (!(norm > 0.0) || !points_world[i].allFinite()) continue;
+        points_world_.push_back(points_world[i]);
+        normals_world_.push_back(normals_world[i] / norm);
+    }
+    if (!points_world_.empty()) origin_world_ = points_world_.front();
+    build_tree();
+}
+
+void ReferencePlanes::build_tree() {
+    tree_ =
+        PointKdTree(point_to_plane_icp_internal::indexed_relative(points_world_, origin_world_));
+}
+
+long ReferencePlanes::nearest(const Eigen::Vector3d& query_world, double max_distance_m) const {
+    PointNeighbor found[1];
+    const Eigen::Vector3f q = (query_world - origin_world_).cast<float>();
+    const int count =
+        tree_.nearest(q, 1, static_cast<float>(max_distance_m * max_distance_m), found);
+    return count == 1 ? long(found[0].index) : -1;
+}
+
+RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& points_sensor,
+                                           const Eigen::Isometry3d& T_world_sensor_initial,
+                                           const ReferencePlanes& reference,
+                                           const PointToPlaneIcpConfig& config) {
+    if (!(config.max_correspondence_distance_m > 0.0)) {
+        throw ConfigError("ICP max_correspondence_distance_m must be positive (got " +
+                          std::to_string(config.max_correspondence_distance_m) + ")");
+    }
+    const PointResiduals residuals = [&](const std::vector<Eigen::Vector3d>& points_world,
+                                         std::vector<double>& r, std::vector<Eigen::Vector3d>& g,
+                                         std::vector<std::uint8_t>& valid) {
+        const std::size_t n = points_world.size();
+        r.assign(n, 0.0);
+        g.assign(n, Eigen::Vector3d::Zero());
+        valid.assign(n, 0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256),
+                          [&](const tbb::blocked_range<std::size_t>& range) {
+                              for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                                  const long j = reference.nearest(
+                                      points_world[i], config.max_correspondence_distance_m);
+                                  if (j < 0) continue;
+                                  const Eigen::Vector3d& n_w = reference.normals_world()[j];
+                                  r[i] = n_w.dot(points_world[i] - reference.points_world()[j]);
+                                  g[i] = n_w;
+                                  valid[i] = 1;
+                              }
+                          });
+    };
+    return minimise_point_residuals(points_sensor, T_world_sensor_initial, residuals,
+                                    config.solver);
+}
+
+}  // namespace shine

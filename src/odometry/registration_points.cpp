@@ -1,0 +1,59 @@
+// Range window and voxel thinning of the points registration uses.
+#include "shine/odometry/registration_points.hpp"
+
+#include <cmath>
+#include <cstdint>
+#include <unordered_set>
+
+#include "shine/core/error.hpp"
+
+namespace shine {
+
+namespace registration_points_internal {
+namespace {
+
+/// A voxel's integer coordinates packed into 64 bits (21 bits each, offset to be positive): at
+/// 0.05 m voxels this spans +-52 km, far beyond any LiDAR's range.
+std::uint64_t voxel_key(const Eigen::Vector3f& p, double voxel_size_m) {
+    constexpr std::int64_t kOffset = std::int64_t(1) << 20;
+    std::uint64_t key = 0;
+    for (int a = 0; a < 3; ++a) {
+        const std::int64_t v = std::int64_t(std::floor(double(p[a]) / voxel_size_m)) + kOffset;
+        key = (key << 21) | (std::uint64_t(v) & ((std::uint64_t(1) << 21) - 1));
+    }
+    return key;
+}
+
+}  // namespace
+}  // namespace registration_points_internal
+
+std::vector<Eigen::Vector3f> select_registration_points(
+    const std::vector<Eigen::Vector3f>& points_sensor, const RegistrationPointConfig& config) {
+    if (!(config.voxel_size_m >= 0.0)) {
+        throw ConfigError("registration voxel_size_m must be >= 0 (got " +
+                          std::to_string(config.voxel_size_m) + ")");
+    }
+    if (!(config.min_range_m >= 0.0) || !(config.max_range_m > config.min_range_m)) {
+        throw ConfigError("registration range window [" + std::to_string(config.min_range_m) +
+                          ", " + std::to_string(config.max_range_m) +
+                          "] m is empty: need 0 <= min_range_m < max_range_m");
+    }
+    const double min_sq = config.min_range_m * config.min_range_m;
+    const double max_sq = config.max_range_m * config.max_range_m;
+    std::vector<Eigen::Vector3f> out;
+    std::unordered_set<std::uint64_t> occupied;
+    for (const Eigen::Vector3f& p : points_sensor) {
+        if (!p.allFinite()) continue;
+        const double r2 = p.cast<double>().squaredNorm();
+        if (r2 < min_sq || r2 > max_sq) continue;
+        if (config.voxel_size_m > 0.0 &&
+            !occupied.insert(registration_points_internal::voxel_key(p, config.voxel_size_m))
+                 .second) {
+            continue;
+        }
+        out.push_back(p);
+    }
+    return out;
+}
+
+}  // namespace shine

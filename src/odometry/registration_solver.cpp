@@ -1,0 +1,273 @@
+// Levenberg-Marquardt on SE(3) over per-point scalar residuals, with deterministic parallel sums.
+#include "shine/odometry/registration_solver.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "shine/core/error.hpp"
+
+namespace shine {
+
+namespace registration_solver_internal {
+namespace {
+
+/// Points per chunk of the sums: fixed, so that the order of the additions (within a chunk, then
+/// chunk after chunk) does not depend on the number of threads.
+constexpr std::size_t kChunkPoints = 256;
+
+/// Smallest diagonal entry of the damping, relative to the largest one.
+constexpr double kDampingFloor = 1e-6;
+
+/// The damping after which the solver gives up looking for a descent step.
+constexpr double kMaxDamping = 1e8;
+
+void check_config(const RegistrationSolverConfig& config) {
+    if (!(config.kernel.scale_m > 0.0)) {
+        throw ConfigError("registration kernel scale_m must be positive (got " +
+                          std::to_string(config.kernel.scale_m) + ")");
+    }
+    if (config.max_iterations < 1) {
+        throw ConfigError("registration max_iterations must be at least 1 (got " +
+                          std::to_string(config.max_iterations) + ")");
+    }
+    if (!(config.converged_translation_m > 0.0) || !(config.converged_rotation_rad > 0.0)) {
+        throw ConfigError(
+            "registration converged_translation_m and converged_rotation_rad must be positive");
+    }
+    if (!(config.max_condition_number > 1.0)) {
+        throw ConfigError("registration max_condition_number must exceed 1 (got " +
+                          std::to_string(config.max_condition_number) + ")");
+    }
+    if (!(config.initial_damping >= 0.0)) {
+        throw ConfigError("registration initial_damping must be >= 0");
+    }
+}
+
+double rms_range_m(const NormalEquations& eq) {
+    return eq.num_valid > 0 ? std::sqrt(eq.sum_range_sq_m2 / double(eq.num_valid)) : 0.0;
+}
+
+}  // namespace
+}  // namespace registration_solver_internal
+
+const char* to_string(RobustKernelType type) {
+    switch (type) {
+        case RobustKernelType::kL2:
+            return "l2";
+        case RobustKernelType::kHuber:
+            return "huber";
+        case RobustKernelType::kGemanMcClure:
+            return "geman-mcclure";
+    }
+    return "?";
+}
+
+const char* to_string(RegistrationStatus status) {
+    switch (status) {
+        case RegistrationStatus::kConverged:
+            return "converged";
+        case RegistrationStatus::kMaxIterations:
+            return "max-iterations";
+        case RegistrationStatus::kTooFewPoints:
+            return "too-few-points";
+        case RegistrationStatus::kIllConditioned:
+            return "ill-conditioned";
+        case RegistrationStatus::kNoDescent:
+            return "no-descent";
+    }
+    return "?";
+}
+
+double RobustKernel::cost(double r) const {
+    const double r2 = r * r;
+    switch (type) {
+        case RobustKernelType::kL2:
+            return 0.5 * r2;
+        case RobustKernelType::kHuber: {
+            const double a = std::abs(r);
+            return a <= scale_m ? 0.5 * r2 : scale_m * (a - 0.5 * scale_m);
+        }
+        case RobustKernelType::kGemanMcClure:
+            return 0.5 * r2 / (1.0 + r2 / (scale_m * scale_m));
+    }
+    return 0.5 * r2;
+}
+
+double RobustKernel::weight(double r) const {
+    switch (type) {
+        case RobustKernelType::kL2:
+            return 1.0;
+        case RobustKernelType::kHuber: {
+            const double a = std::abs(r);
+            return a <= scale_m ? 1.0 : scale_m / a;
+        }
+        case RobustKernelType::kGemanMcClure: {
+            // d/dr of (r^2/2) / (1 + r^2/s^2) is r / (1 + r^2/s^2)^2.
+            const double d = 1.0 + r * r / (scale_m * scale_m);
+            return 1.0 / (d * d);
+        }
+    }
+    return 1.0;
+}
+
+std::string RegistrationResult::summary() const {
+    char buf[256];
+    std::snprintf(buf, sizeof(buf),
+                  "%s after %d iterations, cost %.6g -> %.6g, condition number %.3g, %zu of %zu "
+                  "points valid%s",
+                  to_string(status), iterations, initial_cost, final_cost, condition_number,
+                  num_valid_points, num_points, accepted() ? "" : " (kept the initial pose)");
+    return buf;
+}
+
+Eigen::Matrix<double, 1, 6> point_residual_jacobian(const Eigen::Vector3d& point_sensor,
+                                                    const Eigen::Matrix3d& R_world_sensor,
+                                                    const Eigen::Vector3d& gradient_world) {
+    // Eq. (1).
+    const Eigen::Vector3d g_sensor = R_world_sensor.transpose() * gradient_world;
+    Eigen::Matrix<double, 1, 6> J;
+    J.head<3>() = g_sensor.transpose();
+    J.tail<3>() = point_sensor.cross(g_sensor).transpose();
+    return J;
+}
+
+NormalEquations build_normal_equations(const std::vector<Eigen::Vector3f>& points_sensor,
+                                       const Eigen::Isometry3d& T_world_sensor,
+                                       const PointResiduals& residuals,
+                                       const RobustKernel& kernel) {
+    using registration_solver_internal::kChunkPoints;
+    const std::size_t n = points_sensor.size();
+    NormalEquations total;
+    if (n == 0) return total;
+    std::vector<Eigen::Vector3d> points_world(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        points_world[i] = T_world_sensor * points_sensor[i].cast<double>();
+    }
+    std::vector<double> r;
+    std::vector<Eigen::Vector3d> g;
+    std::vector<std::uint8_t> valid;
+    residuals(points_world, r, g, valid);
+    if (r.size() != n || g.size() != n || valid.size() != n) {
+        throw DataError("registration: the residual function returned " + std::to_string(r.size()) +
+                        " residuals for " + std::to_string(n) + " points");
+    }
+    const Eigen::Matrix3d R = T_world_sensor.linear();
+    const std::size_t num_chunks = (n + kChunkPoints - 1) / kChunkPoints;
+    std::vector<NormalEquations> partial(num_chunks);
+    tbb::parallel_for(std::size_t(0), num_chunks, [&](std::size_t c) {
+        NormalEquations& eq = partial[c];
+        const std::size_t end = std::min(n, (c + 1) * kChunkPoints);
+        for (std::size_t i = c * kChunkPoints; i < end; ++i) {
+            if (!valid[i] || !std::isfinite(r[i]) || !g[i].allFinite()) continue;
+            const Eigen::Vector3d p = points_sensor[i].cast<double>();
+            const Eigen::Matrix<double, 1, 6> J = point_residual_jacobian(p, R, g[i]);
+            const double w = kernel.weight(r[i]);
+            eq.H.noalias() += w * J.transpose() * J;
+            eq.b.noalias() += (w * r[i]) * J.transpose();
+            eq.cost += kernel.cost(r[i]);
+            eq.sum_range_sq_m2 += p.squaredNorm();
+            ++eq.num_valid;
+        }
+    });
+    for (const NormalEquations& eq : partial) {
+        total.H += eq.H;
+        total.b += eq.b;
+        total.cost += eq.cost;
+        total.sum_range_sq_m2 += eq.sum_range_sq_m2;
+        total.num_valid += eq.num_valid;
+    }
+    return total;
+}
+
+double scaled_condition_number(const Matrix6d& H, double range_m) {
+    Vector6d s = Vector6d::Ones();
+    if (range_m > 0.0) s.tail<3>().setConstant(1.0 / range_m);
+    const Matrix6d Hs = s.asDiagonal() * H * s.asDiagonal();
+    Eigen::SelfAdjointEigenSolver<Matrix6d> eig(Hs, Eigen::EigenvaluesOnly);
+    const double lambda_min = eig.eigenvalues()(0);
+    const double lambda_max = eig.eigenvalues()(5);
+    if (!(lambda_min > 0.0) || !(lambda_max > 0.0)) {
+        return std::numeric_limits<double>::infinity();
+    }
+    return lambda_max / lambda_min;
+}
+
+RegistrationResult minimise_point_residuals(const std::vector<Eigen::Vector3f>& points_sensor,
+                                            const Eigen::Isometry3d& T_world_sensor_initial,
+                                            const PointResiduals& residuals,
+                                            const RegistrationSolverConfig& config) {
+    using namespace registration_solver_internal;
+    check_config(config);
+    RegistrationResult result;
+    result.T_world_sensor = T_world_sensor_initial;
+    result.T_world_sensor_solved = T_world_sensor_initial;
+    result.num_points = points_sensor.size();
+
+    Eigen::Isometry3d T = T_world_sensor_initial;
+    NormalEquations eq = build_normal_equations(points_sensor, T, residuals, config.kernel);
+    result.initial_cost = eq.cost;
+    const auto finish = [&](RegistrationStatus status) {
+        result.T_world_sensor_solved = T;
+        result.final_cost = eq.cost;
+        result.num_valid_points = eq.num_valid;
+        result.condition_number = scaled_condition_number(eq.H, rms_range_m(eq));
+        if (status == RegistrationStatus::kConverged &&
+            !(result.condition_number <= config.max_condition_number)) {
+            status = RegistrationStatus::kIllConditioned;
+        }
+        result.status = status;
+        result.converged = status == RegistrationStatus::kConverged ||
+                           status == RegistrationStatus::kIllConditioned;
+        result.degenerate = status == RegistrationStatus::kTooFewPoints ||
+                            status == RegistrationStatus::kIllConditioned;
+        if (result.accepted()) result.T_world_sensor = T;
+        return result;
+    };
+
+    double lambda = config.initial_damping;
+    result.iterations = 1;
+    while (true) {
+        if (eq.num_valid < std::size_t(std::max(config.min_valid_points, 6))) {
+            return finish(RegistrationStatus::kTooFewPoints);
+        }
+        // Eq. (2): a damped step, retried with more damping until the cost goes down.
+        Matrix6d A = eq.H;
+        // Marquardt's scaling by diag(H), floored so that a direction H does not constrain at
+        // all (a plane's in-plane translation) gets damped too instead of an unbounded step.
+        A.diagonal() +=
+            lambda * eq.H.diagonal().cwiseMax(kDampingFloor * eq.H.diagonal().maxCoeff());
+        const Vector6d delta = A.ldlt().solve(-eq.b);
+        const bool small = delta.allFinite() &&
+                           delta.head<3>().norm() < config.converged_translation_m &&
+                           delta.tail<3>().norm() < config.converged_rotation_rad;
+        const Eigen::Isometry3d T_trial = T * se3_exp(delta);
+        NormalEquations trial;
+        if (delta.allFinite()) {
+            trial = build_normal_equations(points_sensor, T_trial, residuals, config.kernel);
+        }
+        const bool descent = delta.allFinite() && trial.num_valid > 0 && trial.cost <= eq.cost;
+        if (descent) {
+            T = T_trial;
+            eq = std::move(trial);
+            lambda = std::max(lambda * 0.1, 1e-12);
+        } else {
+            lambda = std::max(lambda * 10.0, 1e-6);
+        }
+        // A step this small is the minimum whether or not it lowered the cost (rounding).
+        if (small) return finish(RegistrationStatus::kConverged);
+        if (!descent && lambda > kMaxDamping) return finish(RegistrationStatus::kNoDescent);
+        if (descent) {
+            if (result.iterations >= config.max_iterations) {
+                return finish(RegistrationStatus::kMaxIterations);
+            }
+            ++result.iterations;
+        }
+    }
+}
+
+}  // namespace shine

@@ -1,0 +1,44 @@
+// Constant-velocity deskew of a sweep into the sensor frame at its reference time.
+#include "shine/odometry/scan_deskew.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "shine/core/error.hpp"
+#include "shine/odometry/se3.hpp"
+
+namespace shine {
+
+Eigen::Isometry3d sensor_pose_at(const Eigen::Isometry3d& T_prev_cur, double interval_s,
+                                 double time_s) {
+    if (!(interval_s > 0.0)) {
+        throw ConfigError("deskew: the interval between scans must be positive (got " +
+                          std::to_string(interval_s) + " s)");
+    }
+    return se3_exp((time_s / interval_s) * se3_log(T_prev_cur));
+}
+
+std::vector<Eigen::Vector3f> deskew_scan(const std::vector<Eigen::Vector3f>& points_sensor,
+                                         const std::vector<double>& times_s,
+                                         const Eigen::Isometry3d& T_prev_cur, double interval_s) {
+    if (points_sensor.size() != times_s.size()) {
+        throw DataError("deskew: " + std::to_string(points_sensor.size()) + " points but " +
+                        std::to_string(times_s.size()) + " point times; give one time per point");
+    }
+    if (!(interval_s > 0.0)) {
+        throw ConfigError("deskew: the interval between scans must be positive (got " +
+                          std::to_string(interval_s) + " s)");
+    }
+    const Vector6d velocity = se3_log(T_prev_cur) / interval_s;  // body twist per second
+    std::vector<Eigen::Vector3f> out(points_sensor.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_sensor.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                              const Eigen::Isometry3d T_ref_t = se3_exp(times_s[i] * velocity);
+                              out[i] = (T_ref_t * points_sensor[i].cast<double>()).cast<float>();
+                          }
+                      });
+    return out;
+}
+
+}  // namespace shine

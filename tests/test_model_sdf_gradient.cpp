@@ -1,0 +1,112 @@
+// The neural SDF's analytic spatial gradient (J^T h) against central differences of its value, on
+// a randomly initialised small map; values equal NeuralSdf::query's.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "shine/model/neural_sdf.hpp"
+#include "shine/model/sdf_gradient.hpp"
+
+using namespace shine;
+
+namespace {
+
+constexpr float kStepM = 1e-3f;   // central-difference step: 1 mm in 0.25 m cells
+constexpr double kAbsTol = 2e-3;  // per metre: float rounding of values ~0.1 over 2 mm
+constexpr double kRelTol = 2e-2;  // truncation and the odd ReLU kink within the step
+
+NeuralSdf random_map() {
+    FeatureOctreeConfig octree;
+    octree.leaf_size_m = 0.25;
+    octree.num_levels = 2;
+    octree.init_std = 0.3f;
+    NeuralSdf sdf(octree, DecoderConfig{8, {16, 16}, 5});
+    std::vector<Eigen::Vector3f> seeds;
+    for (float x = 0.05f; x < 1.0f; x += 0.2f) {
+        for (float y = 0.05f; y < 1.0f; y += 0.2f) seeds.emplace_back(x, y, 0.1f);
+    }
+    sdf.octree.allocate_cells(seeds);
+    return sdf;
+}
+
+}  // namespace
+
+TEST(SdfGradient, MatchesCentralDifferencesAndQueryValues) {
+    const NeuralSdf sdf = random_map();
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<float> u(0.06f, 0.94f);
+    std::uniform_real_distribution<float> uz(0.02f, 0.22f);
+    std::vector<Eigen::Vector3f> points;
+    for (int i = 0; i < 200; ++i) points.emplace_back(u(rng), u(rng), uz(rng));
+
+    std::vector<float> value;
+    std::vector<Eigen::Vector3f> gradient;
+    std::vector<std::uint8_t> valid;
+    query_sdf_and_gradient(sdf, points, QueryMask::kLevel0, value, gradient, valid);
+
+    std::vector<float> reference;
+    std::vector<std::uint8_t> reference_valid;
+    sdf.query(points, QueryMask::kLevel0, reference, reference_valid);
+    EXPECT_EQ(valid, reference_valid);
+    EXPECT_EQ(value, reference);  // bit for bit
+
+    // Central differences through query(): +-step along each axis, in one batch.
+    std::vector<Eigen::Vector3f> shifted;
+    for (const auto& p : points) {
+        for (int a = 0; a < 3; ++a) {
+            shifted.push_back(p + kStepM * Eigen::Vector3f::Unit(a));
+            shifted.push_back(p - kStepM * Eigen::Vector3f::Unit(a));
+        }
+    }
+    std::vector<float> shifted_value;
+    std::vector<std::uint8_t> shifted_valid;
+    sdf.query(shifted, QueryMask::kLevel0, shifted_value, shifted_valid);
+    // The decoder's ReLUs make the SDF piecewise smooth: where a kink lies within the step, the
+    // central difference mixes two slopes, and the analytic derivative (that of the point's own
+    // side) equals one of the one-sided differences instead. Each derivative must match the
+    // central difference or, at a kink, a one-sided one; and kinks must stay the exception.
+    const auto close = [](double analytic, double numeric) {
+        return std::abs(analytic - numeric) <= kAbsTol + kRelTol * std::abs(numeric);
+    };
+    int checked = 0, central = 0;
+    double gradient_norm_sum = 0.0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        if (!valid[i]) continue;
+        gradient_norm_sum += gradient[i].norm();
+        for (int a = 0; a < 3; ++a) {
+            const std::size_t k = 6 * i + 2 * std::size_t(a);
+            if (!shifted_valid[k] || !shifted_valid[k + 1]) continue;
+            const double plus = shifted_value[k], minus = shifted_value[k + 1], at = value[i];
+            const double numeric = (plus - minus) / (2.0 * kStepM);
+            const double forward = (plus - at) / kStepM, backward = (at - minus) / kStepM;
+            ++checked;
+            if (close(gradient[i][a], numeric)) {
+                ++central;
+            } else {
+                EXPECT_TRUE(close(gradient[i][a], forward) || close(gradient[i][a], backward))
+                    << "point " << i << " axis " << a << ": analytic " << gradient[i][a]
+                    << ", central " << numeric << ", forward " << forward << ", backward "
+                    << backward;
+            }
+        }
+    }
+    EXPECT_GE(checked, 500);  // most of the 200 x 3 derivatives are inside the map
+    EXPECT_GE(central, checked * 9 / 10) << "kinks within 1 mm of more than 10 % of the points";
+    EXPECT_GT(gradient_norm_sum / checked * 3, 0.05);  // a random map has real slopes
+}
+
+TEST(SdfGradient, PointsOutsideTheMapAreInvalidWithZeroGradient) {
+    const NeuralSdf sdf = random_map();
+    const std::vector<Eigen::Vector3f> points = {{50, 50, 50}, {0.5f, 0.5f, 0.1f}};
+    std::vector<float> value;
+    std::vector<Eigen::Vector3f> gradient;
+    std::vector<std::uint8_t> valid;
+    query_sdf_and_gradient(sdf, points, QueryMask::kAnyLevel, value, gradient, valid);
+    ASSERT_EQ(valid.size(), 2u);
+    EXPECT_EQ(valid[0], 0);
+    EXPECT_EQ(value[0], 0.0f);
+    EXPECT_EQ(gradient[0], Eigen::Vector3f::Zero());
+    EXPECT_EQ(valid[1], 1);
+    EXPECT_NE(gradient[1], Eigen::Vector3f::Zero());
+}

@@ -1,0 +1,310 @@
+// Registration to analytic SDFs: a room with a pillar (all six directions constrained), a single
+// plane and a corridor (degenerate), an empty scan; the Jacobian against finite differences; the
+// same bits for 1 and 2 threads.
+#include <gtest/gtest.h>
+#include <tbb/task_arena.h>
+
+#include <cmath>
+#include <random>
+
+#include "shine/core/error.hpp"
+#include "shine/odometry/registration_points.hpp"
+#include "shine/odometry/sdf_registration.hpp"
+#include "shine/odometry/se3.hpp"
+
+using namespace shine;
+
+namespace {
+
+constexpr double kTranslationTolM = 1e-3;              // 1 mm
+constexpr double kRotationTolRad = 0.01 * M_PI / 180;  // 0.01 deg
+
+/// Free space of a room [-10, 10] x [-6, 6] x [-2, 3] m with a pillar of radius 1 m (a sphere
+/// centred at (4, 2, 0)): the SDF is positive in the free space, with the gradient of the nearest
+/// surface. Undefined (outside the map) beyond 1 m outside the room.
+bool room_sdf(const Eigen::Vector3d& p, double& sdf, Eigen::Vector3d& gradient) {
+    const Eigen::Vector3d lo(-10, -6, -2), hi(10, 6, 3);
+    if (((p - hi).array() > 1.0).any() || ((lo - p).array() > 1.0).any()) return false;
+    sdf = 1e9;
+    for (int a = 0; a < 3; ++a) {
+        if (p[a] - lo[a] < sdf) {
+            sdf = p[a] - lo[a];
+            gradient = Eigen::Vector3d::Unit(a);
+        }
+        if (hi[a] - p[a] < sdf) {
+            sdf = hi[a] - p[a];
+            gradient = -Eigen::Vector3d::Unit(a);
+        }
+    }
+    const Eigen::Vector3d c(4, 2, 0);
+    const double d = (p - c).norm() - 1.0;
+    if (d < sdf) {
+        sdf = d;
+        gradient = (p - c) / (p - c).norm();
+    }
+    return true;
+}
+
+/// Points on the room's walls and the pillar (world frame), on jittered grids.
+std::vector<Eigen::Vector3d> room_surface_points(std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> jitter(-0.1, 0.1);
+    std::vector<Eigen::Vector3d> points;
+    const Eigen::Vector3d lo(-10, -6, -2), hi(10, 6, 3);
+    const double step = 0.4;
+    for (int a = 0; a < 3; ++a) {
+        const int b = (a + 1) % 3, c = (a + 2) % 3;
+        for (double u = lo[b] + 0.2; u < hi[b]; u += step) {
+            for (double v = lo[c] + 0.2; v < hi[c]; v += step) {
+                for (const double w : {lo[a], hi[a]}) {
+                    Eigen::Vector3d p;
+                    p[a] = w;
+                    p[b] = std::clamp(u + jitter(rng), lo[b], hi[b]);
+                    p[c] = std::clamp(v + jitter(rng), lo[c], hi[c]);
+                    points.push_back(p);
+                }
+            }
+        }
+    }
+    std::normal_distribution<double> normal(0.0, 1.0);
+    for (int i = 0; i < 500; ++i) {
+        const Eigen::Vector3d dir(normal(rng), normal(rng), normal(rng));
+        points.push_back(Eigen::Vector3d(4, 2, 0) + dir.normalized());
+    }
+    return points;
+}
+
+std::vector<Eigen::Vector3f> to_sensor(const std::vector<Eigen::Vector3d>& points_world,
+                                       const Eigen::Isometry3d& T_world_sensor) {
+    std::vector<Eigen::Vector3f> out;
+    for (const auto& p : points_world) out.push_back((T_world_sensor.inverse() * p).cast<float>());
+    return out;
+}
+
+Vector6d twist(double rx, double ry, double rz, double wx, double wy, double wz) {
+    return (Vector6d() << rx, ry, rz, wx, wy, wz).finished();
+}
+
+/// Translation (m) and rotation (rad) of a^-1 b.
+std::pair<double, double> pose_difference(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    const Eigen::Isometry3d d = a.inverse() * b;
+    return {d.translation().norm(), rotation_angle_rad(d)};
+}
+
+const Eigen::Isometry3d kTruePose = se3_exp(twist(-1.0, 0.5, 0.2, 0.01, -0.02, 0.6));
+const Eigen::Isometry3d kPerturbation = se3_exp(twist(0.3, -0.2, 0.1, 0.02, 0.01, -0.05));
+
+}  // namespace
+
+TEST(SdfRegistration, RecoversAKnownMotionInARoomTo1MmAnd001Deg) {
+    const PointwiseSdfField field(room_sdf);
+    const auto scan = to_sensor(room_surface_points(1), kTruePose);
+    const Eigen::Isometry3d initial = kTruePose * kPerturbation;
+    const RegistrationResult result = register_to_sdf(scan, initial, field, {});
+    ASSERT_TRUE(result.accepted()) << result.summary();
+    const auto [dt, dr] = pose_difference(result.T_world_sensor, kTruePose);
+    EXPECT_LT(dt, kTranslationTolM) << result.summary();
+    EXPECT_LT(dr, kRotationTolRad) << result.summary();
+    const auto [dt0, dr0] = pose_difference(initial, kTruePose);
+    EXPECT_GT(dt0, 0.3);  // the start was really off
+    EXPECT_GT(dr0, 0.05);
+    EXPECT_GT(result.initial_cost, 100.0 * result.final_cost);
+    EXPECT_EQ(result.num_valid_points, scan.size());
+    EXPECT_LT(result.condition_number, 1e3);
+    EXPECT_GT(result.iterations, 1);
+}
+
+TEST(SdfRegistration, OutliersAndPointsOutsideTheMapDoNotPullThePose) {
+    const PointwiseSdfField field(room_sdf);
+    auto world = room_surface_points(2);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const std::size_t inliers = world.size();
+    for (std::size_t i = 0; i < inliers / 10; ++i) {  // 10 % clutter, 0.5 to 1.5 m off walls
+        world.push_back(world[i * 7 % inliers] + Eigen::Vector3d(u(rng), u(rng), u(rng)));
+    }
+    for (int i = 0; i < 100; ++i) world.push_back(Eigen::Vector3d(30 + u(rng), 0, 0));  // outside
+    const auto scan = to_sensor(world, kTruePose);
+    const RegistrationResult result = register_to_sdf(scan, kTruePose * kPerturbation, field, {});
+    ASSERT_TRUE(result.accepted()) << result.summary();
+    const auto [dt, dr] = pose_difference(result.T_world_sensor, kTruePose);
+    EXPECT_LT(dt, kTranslationTolM) << result.summary();
+    EXPECT_LT(dr, kRotationTolRad) << result.summary();
+    EXPECT_LE(result.num_valid_points, scan.size() - 100);
+}
+
+TEST(SdfRegistration, JacobianMatchesFiniteDifferences) {
+    // A smooth field, so that central differences converge: f = 0.3 sin x + 0.2 cos 2y + 0.1 x z.
+    const auto f = [](const Eigen::Vector3d& p) {
+        return 0.3 * std::sin(p.x()) + 0.2 * std::cos(2 * p.y()) + 0.1 * p.x() * p.z();
+    };
+    const auto grad = [](const Eigen::Vector3d& p) {
+        return Eigen::Vector3d(0.3 * std::cos(p.x()) + 0.1 * p.z(), -0.4 * std::sin(2 * p.y()),
+                               0.1 * p.x());
+    };
+    constexpr double kStep = 1e-6;  // m and rad
+    constexpr double kTol = 1e-6;   // of O(1) derivatives: truncation ~ step^2, rounding 1e-10
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-5.0, 5.0);
+    int checked = 0;
+    for (int k = 0; k < 20; ++k) {
+        const Eigen::Isometry3d T =
+            se3_exp(twist(u(rng), u(rng), u(rng), 0.2 * u(rng), 0.2 * u(rng), 0.2 * u(rng)));
+        const Eigen::Vector3d p(u(rng), u(rng), u(rng));
+        const auto J = point_residual_jacobian(p, T.linear(), grad(T * p));
+        for (int j = 0; j < 6; ++j) {
+            const Vector6d e = kStep * Vector6d::Unit(j);
+            const double numeric = (f(T * se3_exp(e) * p) - f(T * se3_exp(-e) * p)) / (2 * kStep);
+            EXPECT_NEAR(J(j), numeric, kTol) << "pose " << k << " direction " << j;
+            ++checked;
+        }
+    }
+    EXPECT_EQ(checked, 120);
+}
+
+TEST(SdfRegistration, ASinglePlaneIsDegenerateAndKeepsTheInitialPose) {
+    const PointwiseSdfField field([](const Eigen::Vector3d& p, double& sdf, Eigen::Vector3d& g) {
+        sdf = p.z();
+        g = Eigen::Vector3d::UnitZ();
+        return true;
+    });
+    std::vector<Eigen::Vector3d> ground;
+    for (double x = -20; x <= 20; x += 0.5) {
+        for (double y = -20; y <= 20; y += 0.5) ground.emplace_back(x, y, 0.0);
+    }
+    const auto scan = to_sensor(ground, kTruePose);
+    const Eigen::Isometry3d initial = kTruePose * kPerturbation;
+    const RegistrationResult result = register_to_sdf(scan, initial, field, {});
+    EXPECT_TRUE(result.degenerate) << result.summary();
+    EXPECT_FALSE(result.accepted());
+    EXPECT_EQ(result.status, RegistrationStatus::kIllConditioned) << result.summary();
+    EXPECT_GT(result.condition_number, 1e4);
+    EXPECT_TRUE(result.T_world_sensor.isApprox(initial, 0.0)) << "not the initial pose";
+    // The solve itself did put the points on the plane: only the unconstrained directions are
+    // unknown.
+    EXPECT_LT(result.final_cost, 1e-3 * result.initial_cost);
+}
+
+TEST(SdfRegistration, AFeaturelessCorridorIsDegenerate) {
+    // Walls at y = +-2, floor and ceiling at z = -1 and 2: nothing fixes x.
+    const PointwiseSdfField field([](const Eigen::Vector3d& p, double& sdf, Eigen::Vector3d& g) {
+        const double d[4] = {p.y() + 2, 2 - p.y(), p.z() + 1, 2 - p.z()};
+        const Eigen::Vector3d n[4] = {Eigen::Vector3d::UnitY(), -Eigen::Vector3d::UnitY(),
+                                      Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitZ()};
+        const int k = int(std::min_element(d, d + 4) - d);
+        sdf = d[k];
+        g = n[k];
+        return true;
+    });
+    std::vector<Eigen::Vector3d> world;
+    for (double x = -20; x <= 20; x += 0.3) {
+        for (double s = -1.9; s <= 1.9; s += 0.3) {
+            world.emplace_back(x, s, -1.0);
+            world.emplace_back(x, s, 2.0);
+            world.emplace_back(x, -2.0, 0.5 + 0.75 * s);
+            world.emplace_back(x, 2.0, 0.5 + 0.75 * s);
+        }
+    }
+    const Eigen::Isometry3d T = se3_exp(twist(3, 0.2, 0.3, 0, 0, 0.05));
+    const Eigen::Isometry3d initial = T * se3_exp(twist(0.1, 0.1, -0.05, 0.01, 0, 0.01));
+    const RegistrationResult result = register_to_sdf(to_sensor(world, T), initial, field, {});
+    EXPECT_TRUE(result.degenerate) << result.summary();
+    EXPECT_TRUE(result.T_world_sensor.isApprox(initial, 0.0));
+}
+
+TEST(SdfRegistration, AnEmptyScanIsReportedNotAnError) {
+    const PointwiseSdfField field(room_sdf);
+    const Eigen::Isometry3d initial = kTruePose;
+    const RegistrationResult result = register_to_sdf({}, initial, field, {});
+    EXPECT_FALSE(result.converged);
+    EXPECT_TRUE(result.degenerate);
+    EXPECT_EQ(result.status, RegistrationStatus::kTooFewPoints);
+    EXPECT_EQ(result.num_valid_points, 0u);
+    EXPECT_TRUE(result.T_world_sensor.isApprox(initial, 0.0));
+    EXPECT_NE(result.summary().find("too-few-points"), std::string::npos) << result.summary();
+}
+
+TEST(SdfRegistration, ScanEntirelyOutsideTheMapHasTooFewPoints) {
+    const PointwiseSdfField field(room_sdf);
+    const std::vector<Eigen::Vector3f> far(500, Eigen::Vector3f(100, 0, 0));
+    const RegistrationResult result = register_to_sdf(far, kTruePose, field, {});
+    EXPECT_EQ(result.status, RegistrationStatus::kTooFewPoints);
+    EXPECT_FALSE(result.accepted());
+}
+
+TEST(SdfRegistration, IterationBudgetExhaustedIsNotConverged) {
+    const PointwiseSdfField field(room_sdf);
+    SdfRegistrationConfig config;
+    config.solver.max_iterations = 1;
+    const Eigen::Isometry3d initial = kTruePose * kPerturbation;
+    const RegistrationResult result =
+        register_to_sdf(to_sensor(room_surface_points(1), kTruePose), initial, field, config);
+    EXPECT_EQ(result.status, RegistrationStatus::kMaxIterations) << result.summary();
+    EXPECT_FALSE(result.converged);
+    EXPECT_TRUE(result.T_world_sensor.isApprox(initial, 0.0));
+    EXPECT_FALSE(result.T_world_sensor_solved.isApprox(initial, 0.0));
+}
+
+TEST(SdfRegistration, SameBitsForOneAndTwoThreads) {
+    const PointwiseSdfField field(room_sdf);
+    auto world = room_surface_points(4);
+    std::mt19937 rng(9);
+    std::normal_distribution<double> noise(0.0, 0.02);  // 2 cm range noise: sums really round
+    for (auto& p : world) p += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    const auto scan = to_sensor(world, kTruePose);
+    RegistrationResult results[2];
+    for (int threads = 1; threads <= 2; ++threads) {
+        tbb::task_arena arena(threads);
+        arena.execute([&] {
+            results[threads - 1] = register_to_sdf(scan, kTruePose * kPerturbation, field, {});
+        });
+    }
+    ASSERT_TRUE(results[0].accepted()) << results[0].summary();
+    EXPECT_EQ(results[0].T_world_sensor.matrix(), results[1].T_world_sensor.matrix());
+    EXPECT_EQ(results[0].final_cost, results[1].final_cost);
+    EXPECT_EQ(results[0].iterations, results[1].iterations);
+    EXPECT_EQ(results[0].condition_number, results[1].condition_number);
+}
+
+TEST(SdfRegistration, InvalidConfigurationIsAConfigError) {
+    const PointwiseSdfField field(room_sdf);
+    SdfRegistrationConfig config;
+    config.solver.kernel.scale_m = 0.0;
+    EXPECT_THROW(register_to_sdf({}, kTruePose, field, config), ConfigError);
+}
+
+TEST(RegistrationPoints, RangeWindowAndOnePointPerVoxel) {
+    const std::vector<Eigen::Vector3f> points = {
+        {0.5f, 0, 0},      // too close
+        {2.1f, 0, 0},      // kept
+        {2.2f, 0.1f, 0},   // same 0.5 m voxel as the previous one
+        {2.6f, 0, 0},      // next voxel
+        {100, 0, 0},       // too far
+        {NAN, 0, 0},       // not finite
+        {-3.0f, 4.0f, 0},  // kept (range 5 m)
+    };
+    RegistrationPointConfig config;
+    config.min_range_m = 1.0;
+    config.max_range_m = 60.0;
+    config.voxel_size_m = 0.5;
+    const auto kept = select_registration_points(points, config);
+    ASSERT_EQ(kept.size(), 3u);
+    EXPECT_EQ(kept[0], points[1]);
+    EXPECT_EQ(kept[1], points[3]);
+    EXPECT_EQ(kept[2], points[6]);
+    config.max_range_m = 0.5;
+    EXPECT_THROW(select_registration_points(points, config), ConfigError);
+}
+
+TEST(RobustKernel, WeightsAreTheDerivativeOfTheCostOverTheResidual) {
+    constexpr double kStep = 1e-6, kTol = 1e-6;
+    for (const auto type :
+         {RobustKernelType::kL2, RobustKernelType::kHuber, RobustKernelType::kGemanMcClure}) {
+        const RobustKernel kernel{type, 0.2};
+        for (const double r : {-0.7, -0.05, 0.01, 0.15, 0.3, 2.0}) {
+            const double derivative =
+                (kernel.cost(r + kStep) - kernel.cost(r - kStep)) / (2 * kStep);
+            EXPECT_NEAR(kernel.weight(r) * r, derivative, kTol) << to_string(type) << " r " << r;
+        }
+    }
+}
