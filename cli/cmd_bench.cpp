@@ -94,7 +94,7 @@ int run_bench(const BenchOptions& opt) {
     info.config = opt.config_path;
     info.threads = config.shine.threads;
     info.iterations = config.shine.iterations;
-    info.half_features = opt.half_features;
+    info.half_features = config.shine.octree.feature_precision == FeaturePrecision::kFloat16;
     info.trunc_voxels = config.trunc_voxels;
     write_stream_atomically(out / "bench.csv", [&](std::ostream& os) { os << rows_to_csv(rows); });
     write_stream_atomically(out / "bench.json",
@@ -150,8 +150,9 @@ const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
                     "ShineVDB optimisation steps per run (default: automatic per leaf size; a set "
                     "count takes 4096-sample steps, as `shine map --iterations`)");
     cmd->add_option("--seed", opt->seed, "Random seed of ShineVDB");
-    cmd->add_flag("--half-features", opt->half_features,
-                  "Store ShineVDB's features as float16 (map.feature_precision: float16)");
+    cmd->add_flag(
+        "--half-features", opt->half_features,
+        "Store ShineVDB's features as float16 (the default; map.feature_precision: float16)");
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);

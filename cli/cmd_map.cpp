@@ -45,6 +45,7 @@ struct MapOptions {
     bool quiet = false;
     bool print_config = false;
     bool half_features = false;
+    bool full_features = false;
     std::string mode = "batch";
     int mesh_every = -1;
     double max_map_mb = -1.0;  ///< < 0: the configuration's map.max_map_mb
@@ -208,6 +209,7 @@ MapperConfig config_from_options(const MapOptions& opt) {
     if (opt.iterations >= 0) config.iterations = opt.iterations;
     if (opt.seed >= 0) config.seed = static_cast<std::uint64_t>(opt.seed);
     if (opt.half_features) config.octree.feature_precision = FeaturePrecision::kFloat16;
+    if (opt.full_features) config.octree.feature_precision = FeaturePrecision::kFloat32;
     if (opt.mesh_every >= 0) config.incremental.mesh_every = opt.mesh_every;
     if (opt.max_map_mb >= 0.0) config.max_map_mb = opt.max_map_mb;
     return config;
@@ -402,7 +404,10 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     add_holdout_option(cmd, opt->holdout_every);
     cmd->add_flag("--half-features", opt->half_features,
-                  "Store the features in float16 (map.feature_precision: float16)");
+                  "Store the features in float16 (the default; map.feature_precision: float16)");
+    cmd->add_flag("--full-features", opt->full_features,
+                  "Store the features in float32 (map.feature_precision: float32)")
+        ->excludes("--half-features");
     cmd->add_option("--max-map-mb", opt->max_map_mb,
                     "Stop before training if the map (features + structure) would exceed this "
                     "many MB (0 = unlimited; config map.max_map_mb)")

