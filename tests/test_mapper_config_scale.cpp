@@ -151,5 +151,22 @@ TEST(MapperConfigScale, AutomaticScheduleAtThreeMillimetresIsCapped) {
     EXPECT_EQ(finalized("map:\n  leaf_size_m: 0.1\n").batch_schedule().iterations, 707);
 }
 
+TEST(MapperConfigScale, AutomaticScheduleFollowsTheScenesCorners) {
+    const MapperConfig object = finalized("map:\n  leaf_size_m: 0.003\n");
+    // The object scene's 186,624 corners: the 250-step floor instead of the leaf's 6250.
+    EXPECT_EQ(object.batch_schedule(186624).iterations, 250);
+    // Twice the street's corners: 500 steps; far more than the leaf formula's cap: 6250.
+    EXPECT_EQ(object.batch_schedule(2 * 438267).iterations, 500);
+    EXPECT_EQ(object.batch_schedule(100000000).iterations, 6250);
+    // Outdoors at 0.2 and 0.1 m the leaf formula is the smaller for a street-sized map: unchanged.
+    const MapperConfig street = finalized("");
+    EXPECT_EQ(street.batch_schedule(438267).iterations, 250);
+    EXPECT_EQ(street.batch_schedule(10 * 438267).iterations, 250);
+    const MapperConfig fine = finalized("map:\n  leaf_size_m: 0.1\n");
+    EXPECT_EQ(fine.batch_schedule(1660000).iterations, 707);
+    // Set steps are never moved.
+    EXPECT_EQ(finalized("training:\n  iterations: 1000\n").batch_schedule(1000).iterations, 1000);
+}
+
 }  // namespace
 }  // namespace shine

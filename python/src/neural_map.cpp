@@ -149,7 +149,7 @@ class NeuralMap {
                                          : std::string("train() is for batch mode, this map is ") +
                                                mode_name(mode_));
         }
-        const int total = config_.batch_iterations();
+        const int total = batch_->planned_iterations();
         int target = total;
         if (!steps.is_none()) {
             const long long n = steps.cast<long long>();
@@ -320,7 +320,7 @@ class NeuralMap {
             out["loss"] = loss;
         }
         if (batch_) {
-            out["iterations_planned"] = config_.batch_iterations();
+            out["iterations_planned"] = batch_->planned_iterations();
         }
         if (incremental_) {
             py::dict inc;
@@ -351,7 +351,9 @@ class NeuralMap {
     std::string mode() const { return mode_name(mode_); }
     std::size_t num_scans() const { return scans_; }
     int iterations_done() const { return batch_ ? batch_->iterations_done() : 0; }
-    int iterations_planned() const { return config_.batch_iterations(); }
+    int iterations_planned() const {
+        return batch_ ? batch_->planned_iterations() : config_.batch_iterations();
+    }
 
   private:
     NeuralMap() = default;

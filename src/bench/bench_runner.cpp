@@ -177,7 +177,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         progress.finish(std::to_string(mesh.triangles.size()) + " triangles");
     }
 
-    train_with_progress(shine, shine_config.batch_iterations(), "train " + tag);
+    train_with_progress(shine, shine.planned_iterations(), "train " + tag);
     {
         Progress progress("shine " + tag, 2);
         progress.update(0, "save, bake, mesh");

@@ -63,7 +63,7 @@ bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
         trainer_ = std::make_unique<Trainer>(*sdf_, config_.batch_trainer(), config_.sampling);
     Trainer& trainer = *trainer_;
     trainer.reset_seconds();
-    const BatchSchedule schedule = config_.batch_schedule();
+    const BatchSchedule schedule = config_.batch_schedule(sdf_->octree.num_corners());
     const float lr0 = schedule.learning_rate;
     const float dlr0 = config_.trainer.decoder_adam.learning_rate;
     const int iterations = schedule.iterations;
@@ -119,9 +119,9 @@ void BatchMapper::load_state(BinaryReader& in) {
                     " (did the data or the frame selection change?)");
     }
     const auto iterations_done = in.value<std::int32_t>("iterations done");
-    if (iterations_done < 0 || iterations_done > config_.batch_iterations()) {
+    if (iterations_done < 0 || iterations_done > planned_iterations()) {
         in.fail("iterations done", std::to_string(iterations_done) + " is outside 0.." +
-                                       std::to_string(config_.batch_iterations()));
+                                       std::to_string(planned_iterations()));
     }
     const auto bce_average = in.value<double>("running BCE");
     load_sdf_parameters(in, *sdf_);
@@ -140,6 +140,10 @@ void BatchMapper::load_state(BinaryReader& in) {
     normals_done_ = false;  // the normals are not stored: train() estimates them again
     iterations_done_ = iterations_done;
     bce_average_ = bce_average;
+}
+
+int BatchMapper::planned_iterations() const {
+    return config_.batch_iterations(sdf_->octree.num_corners());
 }
 
 }  // namespace shine

@@ -139,7 +139,7 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
         resume->expect_end();
         resume.reset();
     }
-    const int iterations = config.batch_iterations();
+    const int iterations = mapper.planned_iterations();
     if (checkpoints) {
         clock.reset();
         bool stopped = false;

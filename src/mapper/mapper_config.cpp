@@ -302,7 +302,7 @@ void apply_scale_free_defaults(MapperConfig& c) {
 
 }  // namespace
 
-BatchSchedule MapperConfig::batch_schedule() const {
+BatchSchedule MapperConfig::batch_schedule(std::size_t num_corners) const {
     // The automatic schedule, measured on the street (docs/performance.md); otherwise the
     // paper's, which are TrainerConfig's own defaults (4096 samples, lr 0.01).
     constexpr int kAutoBatchSize = 32768;
@@ -322,8 +322,12 @@ BatchSchedule MapperConfig::batch_schedule() const {
         schedule.iterations = iterations;
     } else if (automatic) {
         const double finer = std::pow(0.2 / leaf_m, 1.5), coarser = std::min(leaf_m / 0.2, 2.0);
-        schedule.iterations =
-            static_cast<int>(std::lround(std::min(250.0 * std::max(finer, coarser), 6250.0)));
+        double steps = std::min(250.0 * std::max(finer, coarser), 6250.0);
+        if (num_corners > 0) {
+            const double units = static_cast<double>(num_corners) / kScheduleCornersPerUnit;
+            steps = std::min(steps, 250.0 * std::max(units, 1.0));
+        }
+        schedule.iterations = static_cast<int>(std::lround(steps));
     } else {
         const double scaled = 2400.0 * std::pow(0.2 / leaf_m, 1.5);
         schedule.iterations = static_cast<int>(std::lround(std::clamp(scaled, 2400.0, 50000.0)));

@@ -54,6 +54,9 @@ class BatchMapper {
 
     /// Steps done so far.
     int iterations_done() const { return iterations_done_; }
+    /// The steps this run trains: config.batch_schedule() for this map's corner count (known once
+    /// the scans are added; the automatic schedule follows it).
+    int planned_iterations() const;
 
     /// The training state (parameters, optimiser, step count, stats) for a checkpoint.
     /// load_state() expects the same scans to have been added again first (it checks the counts)

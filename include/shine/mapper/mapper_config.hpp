@@ -12,8 +12,8 @@
 //     data's accuracy, not the resolution; at least half a leaf), and the leaf itself when only
 //     the scene is given.
 // A 0.1 m outdoor map thus thins and labels at half the street's lengths but keeps its 0.1 m band
-// and still sees 1.5 - 60 m; at 0.2 m outdoors nothing changes. Ratios, counts and the training schedule
-// (batch_schedule(), which already follows the leaf) are not lengths and stay as they are.
+// and still sees 1.5 - 60 m; at 0.2 m outdoors nothing changes. Ratios, counts and the training
+// schedule (batch_schedule(), which already follows the leaf) are not lengths and stay as they are.
 #pragma once
 
 #include <filesystem>
@@ -112,9 +112,20 @@ struct MapperConfig {
     /// and 0.1 m (docs/performance.md). Setting either keeps the paper's steps: 4096 samples
     /// (unless set), learning rate 0.01 (unless set) and, for automatic iterations, 2400 steps at
     /// 0.2 m and coarser, 2400 * (0.2 m / leaf)^1.5 for finer leaves, at most 50,000.
-    BatchSchedule batch_schedule() const;
-    /// batch_schedule().iterations.
-    int batch_iterations() const { return batch_schedule().iterations; }
+    ///
+    /// With the map's corner count (`num_corners`, all levels; 0 = unknown) the automatic schedule
+    /// also follows the scene: it takes at most 250 steps per kScheduleCornersPerUnit corners (the
+    /// bundled street's at 0.2 m), never fewer than 250. A fine leaf on a small scene (an object
+    /// at 3 mm: 186,624 corners) then trains 250 steps instead of the leaf formula's 6250, as long
+    /// as a street of its size; on the streets and real outdoor scans at 0.1-0.2 m the leaf
+    /// formula is the smaller and nothing changes (docs/object_scale.md).
+    BatchSchedule batch_schedule(std::size_t num_corners = 0) const;
+    /// Corners of the bundled street's 0.2 m map: one unit of the scene-following cap.
+    static constexpr double kScheduleCornersPerUnit = 438267.0;
+    /// batch_schedule(num_corners).iterations.
+    int batch_iterations(std::size_t num_corners = 0) const {
+        return batch_schedule(num_corners).iterations;
+    }
     /// `trainer` with batch_schedule()'s samples per step and learning rate.
     TrainerConfig batch_trainer() const;
 
