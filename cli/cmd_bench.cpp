@@ -9,6 +9,7 @@
 #include <string>
 #include <system_error>
 
+#include "bench_speed.hpp"
 #include "cli_common.hpp"
 #include "command_registry.hpp"
 #include "shine/bench/bench_report.hpp"
@@ -38,9 +39,48 @@ struct BenchOptions {
     bool half_features = false;
     bool no_eval = false;
     bool quiet = false;
+    bool speed = false;  ///< the speed study instead (bench_speed.hpp)
+    int rounds = 3;
 };
 
+/// `shine bench --speed`: ShineVDB batch and incremental against the TSDF baseline, alternated.
+int run_bench_speed(const BenchOptions& opt) {
+    SpeedStudyOptions o;
+    o.data = resolve_data_dir(opt.data, opt.quiet);
+    // The sequence opens (and its pose file matches) before any run starts.
+    ScanSequenceOptions seq_options;
+    seq_options.first_frame = opt.first_frame;
+    seq_options.last_frame = opt.last_frame;
+    seq_options.frame_step = opt.frame_step;
+    seq_options.poses_path = opt.poses_path;
+    const ScanSequence sequence = ScanSequence::open(o.data, seq_options);
+    if (!opt.config_path.empty()) {
+        MapperConfig check;
+        load_config_yaml(opt.config_path, check);
+        o.shine_args = "-c '" + opt.config_path + "'";
+    }
+    o.selection_args = "--first-frame " + std::to_string(opt.first_frame) + " --last-frame " +
+                       std::to_string(opt.last_frame) + " --frame-step " +
+                       std::to_string(opt.frame_step);
+    if (!opt.poses_path.empty()) o.selection_args += " --poses '" + opt.poses_path + "'";
+    o.out = opt.out;
+    o.rounds = opt.rounds;
+    o.threads = opt.threads >= 0 ? opt.threads : 2;
+    o.quiet = opt.quiet;
+    ensure_directory(o.out);
+    const auto rows = run_speed_study(o);
+    std::printf(
+        "%s: %zu scans, %d rounds alternated, %d threads; TSDF %g m voxels (VDBFusion "
+        "settings), ShineVDB %s\n%s",
+        o.data.c_str(), sequence.size(), o.rounds, o.threads, o.tsdf_voxel_m,
+        opt.config_path.empty() ? "defaults" : opt.config_path.c_str(),
+        format_speed_table(rows).c_str());
+    std::printf("wrote %s, %s\n", (o.out / "speed.md").c_str(), (o.out / "speed.json").c_str());
+    return 0;
+}
+
 int run_bench(const BenchOptions& opt) {
+    if (opt.speed) return run_bench_speed(opt);
     const auto start_total = std::chrono::steady_clock::now();
     Progress::set_globally_enabled(!opt.quiet);
 
@@ -157,6 +197,14 @@ const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
                                opt->poses_path);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
+    cmd->add_flag("--speed", opt->speed,
+                  "Speed study instead: the TSDF baseline at 0.1 m (VDBFusion settings), ShineVDB "
+                  "batch and incremental (its configuration, 0.2 m by default), each its own "
+                  "process, alternated over --rounds rounds -> OUT/speed.md, OUT/speed.json "
+                  "(threads: --threads, default 2)");
+    cmd->add_option("--rounds", opt->rounds, "Rounds of the speed study")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
     cmd->callback([opt, &action] { action = [opt] { return run_bench(*opt); }; });
 });
 
