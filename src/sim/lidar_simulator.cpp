@@ -219,14 +219,8 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
             << l.min_range_m << " - " << l.max_range_m << " m, Gaussian range noise sigma "
             << l.range_noise_sigma_m << " m,\nmounted " << t.sensor_height_m
             << " m above the road on a car driving " << config.num_frames << " frames, "
-            << t.frame_spacing_m << " m apart.\n\n"
-            << "velodyne/NNNNNN.bin  float32 x y z intensity (0) per point, sensor frame\n"
-            << "poses.txt            T_world_sensor per frame, 12 numbers (3x4 row-major)\n"
-            << "gt_mesh.ply          reference mesh in the world frame; face property "
-               "`observed` = 1\n"
-            << "                     for the " << summary.num_observed_triangles
-            << " triangles that at least one ray hit\n"
-            << "simulation.json      all parameters and counts\n";
+            << t.frame_spacing_m << " m apart.\n\n";
+        sequence_internal::write_readme_file_list(out, summary.num_observed_triangles);
     });
     summary.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -125,23 +125,9 @@ SimulationSummary simulate_object_sequence(const ObjectSimulationConfig& config,
         heights << (i ? ", " : "") << json_number(t.ring_heights_m[i]);
     }
     std::ostringstream json;
-    json << "{\n"
-         << "  \"generator\": \"shine simulate --scene object\",\n"
-         << "  \"seed\": " << config.seed << ",\n"
-         << "  \"num_frames\": " << num_frames << ",\n"
-         << "  \"origin_offset_world_m\": [0, 0, 0],\n"
-         << "  \"frames\": {\"points\": \"velodyne/NNNNNN.bin, float32 x y z intensity(0), "
-            "sensor frame\", \"poses\": \"poses.txt, T_world_sensor, KITTI 3x4 row-major\", "
-            "\"reference\": \"gt_mesh.ply, world frame, face property observed\"},\n"
-         << "  \"lidar\": {\"num_beams\": " << l.num_beams
-         << ", \"elevation_max_deg\": " << json_number(l.elevation_max_deg)
-         << ", \"elevation_min_deg\": " << json_number(l.elevation_min_deg)
-         << ", \"azimuth_steps\": " << l.azimuth_steps
-         << ", \"azimuth_fov_deg\": " << json_number(l.azimuth_fov_deg)
-         << ", \"min_range_m\": " << json_number(l.min_range_m)
-         << ", \"max_range_m\": " << json_number(l.max_range_m)
-         << ", \"range_noise_sigma_m\": " << json_number(l.range_noise_sigma_m) << "},\n"
-         << "  \"turntable\": {\"scans_per_ring\": " << t.scans_per_ring
+    sequence_internal::write_simulation_json_opening(
+        json, "shine simulate --scene object", config.seed, num_frames, Eigen::Vector3d::Zero(), l);
+    json << "  \"turntable\": {\"scans_per_ring\": " << t.scans_per_ring
          << ", \"ring_heights_m\": [" << heights.str()
          << "], \"distance_m\": " << json_number(t.distance_m)
          << ", \"aim_height_m\": " << json_number(t.aim_height_m)
@@ -175,15 +161,9 @@ SimulationSummary simulate_object_sequence(const ObjectSimulationConfig& config,
             << num_frames << " scans: " << t.scans_per_ring << " per ring at "
             << t.ring_heights_m.size() << " heights, " << t.distance_m
             << " m from the turntable's axis, aimed at its axis " << t.aim_height_m
-            << " m above the plate.\n\n"
-            << "velodyne/NNNNNN.bin  float32 x y z intensity (0) per point, sensor frame\n"
-            << "poses.txt            T_world_sensor per frame, 12 numbers (3x4 row-major)\n"
-            << "gt_mesh.ply          reference mesh in the world frame; face property "
-               "`observed` = 1\n"
-            << "                     for the " << summary.num_observed_triangles
-            << " triangles that at least one ray hit\n"
-            << "simulation.json      all parameters and counts\n"
-            << "Map it at object scale, e.g. `shine map DIR -o OUT --leaf-size-m 0.003`.\n";
+            << " m above the plate.\n\n";
+        sequence_internal::write_readme_file_list(out, summary.num_observed_triangles);
+        out << "Map it at object scale, e.g. `shine map DIR -o OUT --leaf-size-m 0.003`.\n";
     });
     summary.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

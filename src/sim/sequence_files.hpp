@@ -81,12 +81,12 @@ inline void write_simulation_json_tail(std::ostream& json, const StreetScene& sc
          << "}\n";
 }
 
-/// The opening of simulation.json that the street and the route share, up to and including the
-/// trajectory object ("  \"trajectory\": {...},\n"); the caller adds its scene and closes it.
-inline void write_simulation_json_head(std::ostream& json, const char* generator,
-                                       std::uint64_t seed, int num_frames,
-                                       const Eigen::Vector3d& origin_offset_world_m,
-                                       const LidarConfig& l, const DriveTrajectoryConfig& t) {
+/// The opening of simulation.json that every simulated sequence shares, up to and including the
+/// lidar object ("  \"lidar\": {...},\n"); the field of view only for a narrow one.
+inline void write_simulation_json_opening(std::ostream& json, const char* generator,
+                                          std::uint64_t seed, int num_frames,
+                                          const Eigen::Vector3d& origin_offset_world_m,
+                                          const LidarConfig& l) {
     json << "{\n"
          << "  \"generator\": \"" << generator << "\",\n"
          << "  \"seed\": " << seed << ",\n"
@@ -100,16 +100,39 @@ inline void write_simulation_json_head(std::ostream& json, const char* generator
          << "  \"lidar\": {\"num_beams\": " << l.num_beams
          << ", \"elevation_max_deg\": " << json_number(l.elevation_max_deg)
          << ", \"elevation_min_deg\": " << json_number(l.elevation_min_deg)
-         << ", \"azimuth_steps\": " << l.azimuth_steps
-         << ", \"min_range_m\": " << json_number(l.min_range_m)
+         << ", \"azimuth_steps\": " << l.azimuth_steps;
+    if (l.azimuth_fov_deg < 360.0) {
+        json << ", \"azimuth_fov_deg\": " << json_number(l.azimuth_fov_deg);
+    }
+    json << ", \"min_range_m\": " << json_number(l.min_range_m)
          << ", \"max_range_m\": " << json_number(l.max_range_m)
-         << ", \"range_noise_sigma_m\": " << json_number(l.range_noise_sigma_m) << "},\n"
-         << "  \"trajectory\": {\"frame_spacing_m\": " << json_number(t.frame_spacing_m)
+         << ", \"range_noise_sigma_m\": " << json_number(l.range_noise_sigma_m) << "},\n";
+}
+
+/// The opening of simulation.json that the street and the route share, up to and including the
+/// trajectory object ("  \"trajectory\": {...},\n"); the caller adds its scene and closes it.
+inline void write_simulation_json_head(std::ostream& json, const char* generator,
+                                       std::uint64_t seed, int num_frames,
+                                       const Eigen::Vector3d& origin_offset_world_m,
+                                       const LidarConfig& l, const DriveTrajectoryConfig& t) {
+    write_simulation_json_opening(json, generator, seed, num_frames, origin_offset_world_m, l);
+    json << "  \"trajectory\": {\"frame_spacing_m\": " << json_number(t.frame_spacing_m)
          << ", \"sensor_height_m\": " << json_number(t.sensor_height_m)
          << ", \"weave_amplitude_m\": " << json_number(t.weave_amplitude_m)
          << ", \"weave_wavelength_m\": " << json_number(t.weave_wavelength_m)
          << ", \"pitch_amplitude_deg\": " << json_number(t.pitch_amplitude_deg)
          << ", \"roll_amplitude_deg\": " << json_number(t.roll_amplitude_deg) << "},\n";
+}
+
+/// The file list of a simulated sequence's README.txt.
+inline void write_readme_file_list(std::ostream& out, std::size_t num_observed_triangles) {
+    out << "velodyne/NNNNNN.bin  float32 x y z intensity (0) per point, sensor frame\n"
+        << "poses.txt            T_world_sensor per frame, 12 numbers (3x4 row-major)\n"
+        << "gt_mesh.ply          reference mesh in the world frame; face property "
+           "`observed` = 1\n"
+        << "                     for the " << num_observed_triangles
+        << " triangles that at least one ray hit\n"
+        << "simulation.json      all parameters and counts\n";
 }
 
 /// Simulates the scan at every pose with `caster` (RayCaster or BlockRayCaster), seeding each
