@@ -32,8 +32,8 @@
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
-#include "shine/model/feature_encoding.hpp"
 #include "shine/model/map_file.hpp"
+#include "shine/model/sdf_gradient.hpp"
 
 namespace shinevdb {
 namespace {
@@ -181,34 +181,20 @@ class NeuralMap {
         {
             py::gil_scoped_release release;
             const auto limit = limit_threads(config_.threads);
-            const int dim = sdf.octree.feature_dim();
-            tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(0, n, 1024),
-                [&](const tbb::blocked_range<std::size_t>& range) {
-                    CellLookup lookup(sdf.octree);
-                    DecoderWorkspace ws;
-                    sdf.decoder.prepare(ws);
-                    EncodedPoint encoded;
-                    float feature[kMaxFeatureDim];
-                    float jacobian[kMaxFeatureDim * 3];
-                    float h[kMaxFeatureDim];
-                    for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                        const Eigen::Vector3f p =
-                            (points_world[i] - sdf.origin_world_m).cast<float>();
-                        encode_point(lookup, sdf.octree, p, true, encoded);
-                        if (!encoded.valid()) continue;
-                        gather_feature(encoded, sdf.octree.features().data(), dim, feature);
-                        feature_jacobian(encoded, sdf.octree.features().data(), dim, jacobian);
-                        values[i] = sdf.decoder.forward(feature, ws);
-                        sdf.decoder.input_gradient(ws, h);
-                        // grad f = J^T h (J = dF/dx, row-major feature_dim x 3)
-                        for (int a = 0; a < 3; ++a) {
-                            float g = 0.0f;
-                            for (int l = 0; l < dim; ++l) g += jacobian[l * 3 + a] * h[l];
-                            gradients[3 * i + a] = g;
-                        }
-                    }
-                });
+            std::vector<Eigen::Vector3f> points_map(n);
+            for (std::size_t i = 0; i < n; ++i) {
+                points_map[i] = (points_world[i] - sdf.origin_world_m).cast<float>();
+            }
+            std::vector<float> sdf_m;
+            std::vector<Eigen::Vector3f> gradient_map;
+            std::vector<std::uint8_t> valid;
+            query_sdf_and_gradient(sdf, points_map, QueryMask::kAnyLevel, sdf_m, gradient_map,
+                                   valid);
+            for (std::size_t i = 0; i < n; ++i) {
+                if (!valid[i]) continue;  // NaN outside the map
+                values[i] = sdf_m[i];
+                for (int a = 0; a < 3; ++a) gradients[3 * i + a] = gradient_map[i][a];
+            }
         }
         const auto rows = static_cast<py::ssize_t>(n);
         return py::make_tuple(take_vector(std::move(values), {rows}),
