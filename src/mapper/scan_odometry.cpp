@@ -3,6 +3,7 @@
 #include <chrono>
 #include <string>
 #include <type_traits>
+#include <utility>
 
 #include "shine/core/error.hpp"
 #include "shine/io/binary_stream.hpp"
@@ -101,8 +102,10 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
         record.source = PoseSource::kFirst;
         record.accepted = true;
     } else {
-        // 3. Registration from the prediction.
+        // 3. Registration from the prediction, coarse to fine: a stage starts from the previous
+        // stage's pose if that was accepted, else from the prediction.
         RegistrationResult result;
+        int iterations = 0;
         const bool icp = k <= static_cast<std::size_t>(config_.icp_warmup_scans);
         if (icp) {
             record.tried = RegistrationMethod::kIcp;
@@ -110,23 +113,45 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
             for (const auto& scan_points : reference_world_) {
                 reference.insert(reference.end(), scan_points.begin(), scan_points.end());
             }
-            PointToPlaneIcpConfig icp_config;
-            icp_config.max_correspondence_distance_m = config_.icp_max_correspondence_m;
-            icp_config.solver = solver_config(config_, config_.icp_kernel_scale_m);
             if (!reference.empty()) {
                 const ReferencePlanes planes(reference, PlaneFitConfig{});
-                result = register_point_to_plane(points, prediction, planes, icp_config);
+                std::vector<std::pair<double, double>> stages;  // correspondence, kernel scale
+                const double coarse_m = config_.icp_coarse_correspondence_m;
+                if (coarse_m > config_.icp_max_correspondence_m) {
+                    stages.emplace_back(coarse_m, 0.25 * coarse_m);
+                }
+                stages.emplace_back(config_.icp_max_correspondence_m, config_.icp_kernel_scale_m);
+                Eigen::Isometry3d from = prediction;
+                for (const auto& [correspondence_m, scale_m] : stages) {
+                    PointToPlaneIcpConfig icp_config;
+                    icp_config.max_correspondence_distance_m = correspondence_m;
+                    icp_config.solver = solver_config(config_, scale_m);
+                    result = register_point_to_plane(points, from, planes, icp_config);
+                    iterations += result.iterations;
+                    if (result.accepted()) from = result.T_world_sensor;
+                }
             }
         } else {
             record.tried = RegistrationMethod::kSdf;
-            SdfRegistrationConfig sdf_config;
-            sdf_config.solver = solver_config(config_, config_.sdf_kernel_scale_m);
-            result = register_to_sdf(points, prediction, NeuralSdfField(map), sdf_config);
+            std::vector<double> scales;
+            if (config_.sdf_coarse_kernel_scale_m > config_.sdf_kernel_scale_m) {
+                scales.push_back(config_.sdf_coarse_kernel_scale_m);
+            }
+            scales.push_back(config_.sdf_kernel_scale_m);
+            const NeuralSdfField field(map);
+            Eigen::Isometry3d from = prediction;
+            for (const double scale_m : scales) {
+                SdfRegistrationConfig sdf_config;
+                sdf_config.solver = solver_config(config_, scale_m);
+                result = register_to_sdf(points, from, field, sdf_config);
+                iterations += result.iterations;
+                if (result.accepted()) from = result.T_world_sensor;
+            }
         }
-        // 4. Accepted, or the prediction.
+        // 4. Accepted (the last stage), or the prediction.
         record.status = result.status;
         record.accepted = result.accepted();
-        record.iterations = result.iterations;
+        record.iterations = iterations;
         record.initial_cost = result.initial_cost;
         record.final_cost = result.final_cost;
         record.condition_number = result.condition_number;

@@ -12,7 +12,8 @@
 //   3. while the map is young (scans 1 .. icp_warmup_scans) point-to-plane ICP against the points
 //      of the last icp_reference_scans scans in the world frame (point_to_plane_icp.hpp);
 //      afterwards registration to the neural map's SDF (sdf_registration.hpp through
-//      NeuralSdfField), both from the prediction;
+//      NeuralSdfField), both from the prediction and each coarse to fine (a wide stage that
+//      finds the basin, then a narrow one that ignores what does not fit: odometry_config.hpp);
 //   4. a registration that is not accepted (RegistrationResult::accepted) leaves the prediction,
 //      and the record says so.
 // The mapper then maps the scan at the estimated pose. Deterministic: the registration sums are
@@ -56,11 +57,12 @@ const char* to_string(RegistrationMethod method);
 struct OdometryRecord {
     PoseSource source = PoseSource::kFirst;
     RegistrationMethod tried = RegistrationMethod::kNone;
-    RegistrationStatus status = RegistrationStatus::kTooFewPoints;
+    RegistrationStatus status = RegistrationStatus::kTooFewPoints;  ///< of the last stage
     bool accepted = false;
-    std::int32_t iterations = 0;
-    double initial_cost = 0.0;       ///< sum of rho at the prediction, m^2
-    double final_cost = 0.0;         ///< at the solver's last iterate
+    std::int32_t iterations = 0;  ///< over all stages
+    /// Sum of rho (m^2) at the start and the end of the LAST stage (whose kernel they use).
+    double initial_cost = 0.0;
+    double final_cost = 0.0;
     double condition_number = 0.0;   ///< of the range-scaled H at the last iterate
     std::uint64_t points = 0;        ///< registration points of the scan
     std::uint64_t valid_points = 0;  ///< of them, with a residual at the last iterate
