@@ -19,6 +19,7 @@
 #include "shine/core/stop_request.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
+#include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/checkpoint.hpp"
@@ -301,15 +302,12 @@ int run_map(const MapOptions& given_options) {
     if (!estimate_requested) seq_options.poses_path = opt.poses_path;
     seq_options.topic = opt.topic;
     seq_options.poses = PoseFileUse::kIfPresent;
-    if ((estimate_requested || config.odometry.estimate_poses) && !incremental) {
-        throw ConfigError(
-            "poses are estimated in incremental mode only (each scan registered to the map "
-            "built so far): run `shine map DATA --mode incremental --poses estimate`");
-    }
     const ScanSequence selected = ScanSequence::open(data, seq_options);
-    if (!selected.has_poses() && !incremental) {
+    if (!selected.has_poses() && !incremental && !estimate_requested &&
+        !config.odometry.estimate_poses) {
         const std::string estimate_hint =
-            ", or estimate the poses while mapping with --mode incremental --poses estimate";
+            ", or estimate them with --poses estimate (with --mode incremental while mapping; "
+            "in batch mode by an incremental run first)";
         if (selected.from_recording()) {
             throw ConfigError("recording '" + data.string() +
                               "' carries no poses: pass a TUM trajectory with --poses FILE (lines "
@@ -339,8 +337,15 @@ int run_map(const MapOptions& given_options) {
     }
     if (config.odometry.estimate_poses && selected.has_poses() && !resuming) {
         std::printf(
-            "estimating the poses while mapping; the data's poses are used only to place "
-            "the first scan (the world frame) and to score\n");
+            "estimating the poses%s; the data's poses are used only to place the first scan "
+            "(the world frame) and to score\n",
+            incremental ? " while mapping" : "");
+    }
+    if (config.odometry.estimate_poses && !incremental && !resuming) {
+        std::printf(
+            "batch mode: the poses come from an incremental run first (its map and poses in "
+            "%s), then all scans are trained at them\n",
+            (fs::path(opt.out) / "odometry").c_str());
     }
     // With --holdout-every N the map never sees every N-th scan; they score it afterwards.
     const HoldoutSplit split = split_holdout(selected, opt.holdout_every);
@@ -374,9 +379,18 @@ int run_map(const MapOptions& given_options) {
 
     std::optional<SequenceMap> batch_map;
     std::optional<IncrementalSequenceMap> incremental_map;
+    // Batch mode with estimated poses: the odometry of an incremental run, then the batch map at
+    // its poses. The odometry run is deterministic, so a resumed run repeats it (without a
+    // checkpoint of its own) and goes on from the batch training's checkpoint.
+    std::optional<IncrementalSequenceMap> odometry_run;
     try {
         if (incremental) {
             incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
+        } else if (config.odometry.estimate_poses) {
+            odometry_run = map_sequence_incremental(config, sequence, out / "odometry", "odometry");
+            const std::vector<Eigen::Isometry3d>& poses = odometry_run->odometry->poses();
+            write_kitti_poses(out / "poses.txt", poses);
+            batch_map = map_sequence(config, sequence.with_poses(poses), out, {}, &control);
         } else {
             batch_map = map_sequence(config, sequence, out, {}, &control);
         }
@@ -427,7 +441,11 @@ int run_map(const MapOptions& given_options) {
     add_product_stats(json, sdf, products, out);
     json["loss"] = {{"bce", stats.final_bce}, {"eikonal", stats.final_eikonal}};
     if (incremental) add_incremental_stats(*incremental_map, json);
-    if (incremental && incremental_map->odometry) add_odometry_stats(*incremental_map, json);
+    const IncrementalSequenceMap* odometry_map = incremental && incremental_map->odometry
+                                                     ? &*incremental_map
+                                                 : odometry_run ? &*odometry_run
+                                                                : nullptr;
+    if (odometry_map) add_odometry_stats(*odometry_map, json);
     const StageProfile& profile = incremental ? incremental_map->profile : batch_map->profile;
     json["profile"] = profile_to_json(profile);
 
@@ -440,14 +458,14 @@ int run_map(const MapOptions& given_options) {
                     json["incremental"]["median_seconds_per_frame"].get<double>(),
                     json["incremental"]["threads_used"].get<int>());
     }
-    if (incremental && incremental_map->odometry) {
+    if (odometry_map) {
         const nlohmann::json& o = json["odometry"];
         std::string counts;
         for (const auto& [source, n] : o["counts"].items()) {
             counts += (counts.empty() ? "" : ", ") + std::to_string(n.get<int>()) + " " + source;
         }
         std::printf("odometry: %zu poses (%s), median %.3f s/scan with mapping; wrote %s\n",
-                    incremental_map->odometry->poses().size(), counts.c_str(),
+                    odometry_map->odometry->poses().size(), counts.c_str(),
                     o["median_seconds_per_scan"].get<double>(), (out / "poses.txt").c_str());
     }
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
@@ -510,8 +528,8 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
                                opt->poses_path);
     cmd->get_option("--poses")->description(
         "Pose file (default: found in DATA; for a recording a TUM trajectory matched to the "
-        "scans by time), or `estimate`: estimate each scan's pose while mapping "
-        "(--mode incremental; also what incremental mode does for data without poses)");
+        "scans by time), or `estimate`: estimate each scan's pose while mapping (in batch mode "
+        "by an incremental run first; incremental mode does so for data without poses)");
     add_topic_option(cmd, opt->topic);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     add_holdout_option(cmd, opt->holdout_every);

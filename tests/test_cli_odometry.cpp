@@ -1,6 +1,7 @@
 // `shine map --mode incremental --poses estimate` end to end on a small simulated street: the
 // estimated trajectory against the simulator's, the outputs (poses.txt, stats.json records), data
-// without a pose file, a scan without points, batch mode's refusal, and resuming a stopped run.
+// without a pose file, a scan without points, batch mode on estimated poses, and resuming a
+// stopped run.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -108,18 +109,33 @@ TEST(OdometryCli, DataWithoutPosesIsMappedWithEstimatedPosesAndSaysSo) {
     EXPECT_TRUE(shine::read_kitti_poses(out / "poses.txt")[0].isApprox(
         Eigen::Isometry3d::Identity(), 1e-12));
 
-    // Batch mode needs poses, and says how to map without them.
+    // Batch mode needs poses unless asked to estimate them, and says how.
     const CliResult batch = run("map '" + data.string() + "' -o '" +
                                 (test_dir() / "batch_out").string() + "' -q --no-eval");
     EXPECT_NE(batch.exit_code, 0);
-    EXPECT_NE(batch.output.find("--mode incremental --poses estimate"), std::string::npos)
-        << batch.output;
-    const CliResult batch_estimate =
-        run("map '" + street().string() + "' -o '" + (test_dir() / "batch_out").string() +
-            "' -q --no-eval --poses estimate");
-    EXPECT_NE(batch_estimate.exit_code, 0);
-    EXPECT_NE(batch_estimate.output.find("incremental mode only"), std::string::npos)
-        << batch_estimate.output;
+    EXPECT_NE(batch.output.find("--poses estimate"), std::string::npos) << batch.output;
+}
+
+TEST(OdometryCli, BatchModeTrainsAtThePosesOfAnIncrementalRun) {
+    const fs::path out = test_dir() / "batch_estimated";
+    fs::remove_all(out);
+    const CliResult r = run("map '" + street().string() + "' -o '" + out.string() +
+                            "' --threads 2 -q --no-eval --poses estimate --iterations 200");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("batch mode: the poses come from an incremental run"),
+              std::string::npos)
+        << r.output;
+    // The incremental run's poses, copied next to the batch map.
+    EXPECT_EQ(read_text(out / "poses.txt"), read_text(out / "odometry" / "poses.txt"));
+    const auto estimate = shine::read_kitti_poses(out / "poses.txt");
+    const auto truth = shine::read_kitti_poses(street() / "poses.txt");
+    EXPECT_LT(
+        shine::absolute_trajectory_error(estimate, truth, shine::TrajectoryAlignment::kSe3).rmse_m,
+        kMaxAteAlignedM);
+    const nlohmann::json stats = read_json(out / "stats.json");
+    EXPECT_EQ(stats.at("mode"), "batch");
+    EXPECT_EQ(stats.at("odometry").at("scans").size(), std::size_t(kScans));
+    EXPECT_TRUE(fs::exists(out / "mesh.ply"));
 }
 
 TEST(OdometryCli, ScanWithoutPointsIsSkippedWithAWarning) {

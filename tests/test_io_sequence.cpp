@@ -282,4 +282,10 @@ TEST(ScanSequence, PosesIfPresentOpensADirectoryWithoutPosesAtIdentity) {
     EXPECT_TRUE(without.pose(1).isApprox(Eigen::Isometry3d::Identity()));
     EXPECT_EQ(without.load(1).points_sensor, scan_points(2));
     EXPECT_FALSE(without.subset({1}).has_poses());
+    // Poses given afterwards (batch mapping on estimated poses).
+    const auto placed = without.with_poses(trajectory(2));
+    EXPECT_TRUE(placed.has_poses());
+    EXPECT_TRUE(placed.load(1).T_world_sensor.isApprox(trajectory(2)[1]));
+    EXPECT_EQ(placed.load(1).points_sensor, scan_points(2));
+    EXPECT_THROW(without.with_poses(trajectory(3)), shine::DataError);
 }

@@ -345,6 +345,17 @@ Scan ScanSequence::load(std::size_t i) const {
     return scan;
 }
 
+ScanSequence ScanSequence::with_poses(const std::vector<Eigen::Isometry3d>& poses) const {
+    if (poses.size() != poses_.size()) {
+        throw DataError("sequence '" + dir_.string() + "' has " + std::to_string(poses_.size()) +
+                        " scans, but " + std::to_string(poses.size()) + " poses were given");
+    }
+    ScanSequence result = *this;
+    result.poses_ = poses;
+    result.has_poses_ = true;
+    return result;
+}
+
 ScanSequence ScanSequence::subset(const std::vector<std::size_t>& indices) const {
     ScanSequence part;
     part.dir_ = dir_;

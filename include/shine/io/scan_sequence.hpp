@@ -83,6 +83,9 @@ class ScanSequence {
     const Eigen::Isometry3d& pose(std::size_t i) const { return poses_.at(i); }
     /// Whether the poses come from the data (false: identity placeholders, see PoseFileUse).
     bool has_poses() const { return has_poses_; }
+    /// The same scans at `poses_world_sensor` (one per scan): batch mapping on estimated poses.
+    /// Throws DataError if the count differs.
+    ScanSequence with_poses(const std::vector<Eigen::Isometry3d>& poses_world_sensor) const;
     const std::filesystem::path& scan_path(std::size_t i) const { return scan_paths_.at(i); }
     const std::filesystem::path& directory() const { return dir_; }
     /// Acquisition time of scan i in seconds (recordings: header stamp; files: 0).
