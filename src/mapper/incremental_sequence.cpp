@@ -35,7 +35,8 @@ void write_incremental_checkpoint(const RunControl& control, const IncrementalSe
     write_checkpoint(control.checkpoint_path, control.run_description, CheckpointMode::kIncremental,
                      [&](BinaryWriter& out) {
                          out.value<std::uint64_t>(frames_done);
-                         out.value<std::uint8_t>(result.odometry ? 1 : 0);
+                         // Only with odometry (its own tagged section): the checkpoints of
+                         // runs with given poses keep their layout.
                          if (result.odometry) result.odometry->save(out);
                          result.mapper->save_state(out);
                          static_assert(std::is_trivially_copyable_v<StageSeconds>);
@@ -66,10 +67,10 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
         in.fail("frames done", std::to_string(frames_done) + " exceeds the sequence's " +
                                    std::to_string(sequence.size()) + " scans");
     }
-    const bool has_odometry = in.value<std::uint8_t>("odometry flag") != 0;
+    const bool has_odometry = in.next_is_tag("scan odometry");
     if (has_odometry != (result.odometry != nullptr)) {
-        in.fail("odometry flag",
-                has_odometry ? "says the run estimated its poses" : "says the run read its poses");
+        in.fail("odometry section", has_odometry ? "is there, but this run reads its poses"
+                                                 : "is missing, but this run estimates its poses");
     }
     if (result.odometry) {
         result.odometry->load(in);
