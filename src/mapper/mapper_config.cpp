@@ -224,6 +224,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"max_range_m", number(c.odometry.max_range_m, 0.0, kInf)},
           {"max_iterations", number(c.odometry.max_iterations, 1, 10000)},
           {"icp_warmup_scans", number(c.odometry.icp_warmup_scans, 0, 100000000)},
+          {"icp_before_sdf", boolean(c.odometry.icp_before_sdf)},
           {"icp_reference_scans", number(c.odometry.icp_reference_scans, 1, 1000)},
           {"icp_max_correspondence_m", number(c.odometry.icp_max_correspondence_m, 1e-4, 100.0)},
           {"icp_kernel_scale_m", number(c.odometry.icp_kernel_scale_m, 1e-5, 100.0)},

@@ -107,7 +107,10 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
         RegistrationResult result;
         int iterations = 0;
         const bool icp = k <= static_cast<std::size_t>(config_.icp_warmup_scans);
-        if (icp) {
+        // After the warm-up, ICP (when icp_before_sdf) only finds the SDF registration's start.
+        Eigen::Isometry3d sdf_start = prediction;
+        bool icp_found_start = false;
+        if (icp || config_.icp_before_sdf) {
             record.tried = RegistrationMethod::kIcp;
             std::vector<Eigen::Vector3d> reference;
             for (const auto& scan_points : reference_world_) {
@@ -130,16 +133,22 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
                     iterations += result.iterations;
                     if (result.accepted()) from = result.T_world_sensor;
                 }
+                sdf_start = from;
+                icp_found_start = result.accepted();
             }
-        } else {
+        }
+        if (!icp) {
             record.tried = RegistrationMethod::kSdf;
+            // From ICP's pose the SDF refines in one narrow stage; from the prediction, coarse to
+            // fine.
             std::vector<double> scales;
-            if (config_.sdf_coarse_kernel_scale_m > config_.sdf_kernel_scale_m) {
+            if (!icp_found_start &&
+                config_.sdf_coarse_kernel_scale_m > config_.sdf_kernel_scale_m) {
                 scales.push_back(config_.sdf_coarse_kernel_scale_m);
             }
             scales.push_back(config_.sdf_kernel_scale_m);
             const NeuralSdfField field(map);
-            Eigen::Isometry3d from = prediction;
+            Eigen::Isometry3d from = sdf_start;
             for (const double scale_m : scales) {
                 SdfRegistrationConfig sdf_config;
                 sdf_config.solver = solver_config(config_, scale_m);
@@ -179,7 +188,8 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
 
 void ScanOdometry::remember_scan(const Scan& scan) {
     // Only while a scan still to come registers by ICP: scan poses_.size() is the next one.
-    if (poses_.size() > static_cast<std::size_t>(config_.icp_warmup_scans)) {
+    if (!config_.icp_before_sdf &&
+        poses_.size() > static_cast<std::size_t>(config_.icp_warmup_scans)) {
         reference_world_.clear();
         return;
     }

@@ -19,6 +19,11 @@ struct OdometryConfig {
     /// The first icp_warmup_scans scans after the first one register by point-to-plane ICP to
     /// the previous scans' points: the neural map of one or two scans is too young.
     int icp_warmup_scans = 3;
+    /// After the warm-up, each scan is first aligned by ICP to the last icp_reference_scans scans
+    /// and then refined on the neural map's SDF (one stage, sdf_kernel_scale_m). false: the SDF
+    /// registration alone, coarse to fine from the prediction. Measured on the street: the SDF
+    /// alone loses track at 2-3 m between scans, ICP first does not (docs/odometry.md).
+    bool icp_before_sdf = true;
     /// ICP's reference: the points of this many previous scans (world frame).
     int icp_reference_scans = 3;
     /// ICP: scan points farther than this from every reference point have no match.
@@ -33,8 +38,8 @@ struct OdometryConfig {
     /// Geman-McClure scale of the SDF residuals (the map's SDF at the points), m. Small: points
     /// the map has not seen yet (its untrained margin) must not pull the pose.
     double sdf_kernel_scale_m = 0.02;
-    /// The SDF registration runs coarse to fine as well: first with this kernel scale, then with
-    /// sdf_kernel_scale_m. 0 (or a value not above it): one stage.
+    /// Without icp_before_sdf the SDF registration runs coarse to fine as well: first with this
+    /// kernel scale, then with sdf_kernel_scale_m. 0 (or a value not above it): one stage.
     double sdf_coarse_kernel_scale_m = 0.1;
     /// A solve whose range-scaled Hessian is worse conditioned is not trusted (the prediction is
     /// kept): a single plane or a featureless corridor.

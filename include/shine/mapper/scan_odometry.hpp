@@ -10,10 +10,12 @@
 //      constant velocity of the last two estimated poses (se3.hpp's predict_constant_velocity;
 //      the second scan, with one pose behind it, at rest);
 //   3. while the map is young (scans 1 .. icp_warmup_scans) point-to-plane ICP against the points
-//      of the last icp_reference_scans scans in the world frame (point_to_plane_icp.hpp);
-//      afterwards registration to the neural map's SDF (sdf_registration.hpp through
-//      NeuralSdfField), both from the prediction and each coarse to fine (a wide stage that
-//      finds the basin, then a narrow one that ignores what does not fit: odometry_config.hpp);
+//      of the last icp_reference_scans scans in the world frame (point_to_plane_icp.hpp), coarse
+//      to fine (a wide stage that finds the basin, then a narrow one that ignores what does not
+//      fit: odometry_config.hpp); afterwards registration to the neural map's SDF
+//      (sdf_registration.hpp through NeuralSdfField), started from that ICP's result
+//      (icp_before_sdf, the default: the SDF is metric only near surfaces, so its basin is
+//      narrow) or coarse to fine from the prediction;
 //   4. a registration that is not accepted (RegistrationResult::accepted) leaves the prediction,
 //      and the record says so.
 // The mapper then maps the scan at the estimated pose. Deterministic: the registration sums are
@@ -47,7 +49,7 @@ enum class PoseSource : std::uint8_t {
 /// "first" / "icp" / "sdf" / "prediction" / "skipped".
 const char* to_string(PoseSource source);
 
-/// Which registration was tried.
+/// Which registration was tried (kSdf also when ICP found its start).
 enum class RegistrationMethod : std::uint8_t { kNone, kIcp, kSdf };
 
 /// "none" / "icp" / "sdf".
