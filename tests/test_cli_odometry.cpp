@@ -167,3 +167,38 @@ TEST(OdometryCli, StoppedRunResumesToTheSamePoses) {
     EXPECT_EQ(read_text(out / "poses.txt"), read_text(reference / "poses.txt"));
     EXPECT_EQ(read_text(out / "mesh.ply"), read_text(reference / "mesh.ply"));
 }
+
+TEST(OdometryCli, SdfRegistrationFromThePredictionAlsoTracksTheStreet) {
+    // icp_before_sdf: false, the SDF registration alone (coarse to fine) after the warm-up.
+    const fs::path config = test_dir() / "sdf_alone.yaml";
+    std::ofstream(config) << "odometry:\n  icp_before_sdf: false\n";
+    const fs::path out = test_dir() / "sdf_alone";
+    fs::remove_all(out);
+    const CliResult r =
+        run(map_args(street(), out, "--poses estimate -c '" + config.string() + "'"));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const auto estimate = shine::read_kitti_poses(out / "poses.txt");
+    const auto truth = shine::read_kitti_poses(street() / "poses.txt");
+    EXPECT_LT(
+        shine::absolute_trajectory_error(estimate, truth, shine::TrajectoryAlignment::kSe3).rmse_m,
+        kMaxAteAlignedM);
+    const nlohmann::json scans = read_json(out / "stats.json").at("odometry").at("scans");
+    EXPECT_EQ(scans[kScans - 1].at("method"), "sdf");
+}
+
+TEST(OdometryCli, StoppedBatchRunRepeatsTheOdometryAndResumesToTheSameMap) {
+    const std::string args = "--poses estimate --iterations 100";
+    const fs::path reference = test_dir() / "batch_reference";
+    fs::remove_all(reference);
+    const std::string batch = "map '" + street().string() + "' -q --no-eval --threads 2 ";
+    ASSERT_EQ(run(batch + "-o '" + reference.string() + "' " + args).exit_code, 0);
+    const fs::path out = test_dir() / "batch_resumed";
+    fs::remove_all(out);
+    const CliResult stopped = run(batch + "-o '" + out.string() + "' " + args +
+                                  " --interrupt-after 30");  // a batch training step
+    ASSERT_EQ(stopped.exit_code, 130) << stopped.output;
+    const CliResult resumed = run("map --resume '" + out.string() + "' -q");
+    ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+    EXPECT_EQ(read_text(out / "poses.txt"), read_text(reference / "poses.txt"));
+    EXPECT_EQ(read_text(out / "mesh.ply"), read_text(reference / "mesh.ply"));
+}
