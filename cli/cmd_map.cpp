@@ -1,9 +1,12 @@
 // `shine map [DATA] -o OUT`: scans -> neural map (map.vdb) -> level set (surface.vdb) -> mesh.ply,
 // with stats.json, and metrics against a reference mesh when one is available.
+#include <algorithm>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 
@@ -16,6 +19,7 @@
 #include "shine/core/stop_request.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
+#include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/checkpoint.hpp"
@@ -58,6 +62,9 @@ struct MapOptions {
 
 fs::path checkpoint_file(const fs::path& out) { return out / "checkpoint.bin"; }
 
+/// `--poses estimate`: no pose file, the odometry estimates the poses while mapping.
+constexpr const char* kEstimatePoses = "estimate";
+
 /// The options --resume accepts besides itself: they do not change the result.
 bool allowed_with_resume(const std::string& option) {
     return option == "--threads" || option == "--quiet" || option == "--profile" ||
@@ -74,7 +81,9 @@ nlohmann::json describe_run(const MapOptions& opt, const fs::path& data,
             {"last_frame", opt.last_frame},
             {"frame_step", opt.frame_step},
             {"holdout_every", opt.holdout_every},
-            {"poses", opt.poses_path.empty() ? "" : fs::absolute(opt.poses_path).string()},
+            {"poses", opt.poses_path.empty() || opt.poses_path == kEstimatePoses
+                          ? opt.poses_path
+                          : fs::absolute(opt.poses_path).string()},
             {"topic", opt.topic},
             {"ref", opt.ref_path.empty() ? "" : fs::absolute(opt.ref_path).string()},
             {"no_eval", opt.no_eval},
@@ -167,6 +176,55 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
                            {"progress_meshes", meshes}};
 }
 
+/// The odometry's per-scan records and a summary (seconds per scan: odometry plus mapping).
+void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& json) {
+    const ScanOdometry& odometry = *mapped.odometry;
+    const std::vector<IncrementalFrameStats>& frames = mapped.mapper->frames();
+    nlohmann::json scans = nlohmann::json::array();
+    std::vector<double> scan_seconds, registration_seconds;
+    std::map<std::string, int> counts;
+    for (std::size_t i = 0, f = 0; i < odometry.records().size(); ++i) {
+        const OdometryRecord& r = odometry.records()[i];
+        double seconds = r.seconds;
+        if (odometry.mapped(i) && f < frames.size()) seconds += frames[f++].total_seconds;
+        scan_seconds.push_back(seconds);
+        if (r.tried != RegistrationMethod::kNone) registration_seconds.push_back(r.seconds);
+        ++counts[to_string(r.source)];
+        scans.push_back(
+            {{"method", to_string(r.source)},
+             {"tried", to_string(r.tried)},
+             {"status", r.tried == RegistrationMethod::kNone ? "none" : to_string(r.status)},
+             {"accepted", r.accepted},
+             {"iterations", r.iterations},
+             {"initial_cost", r.initial_cost},
+             {"final_cost", r.final_cost},
+             {"condition_number", std::isfinite(r.condition_number)
+                                      ? nlohmann::json(r.condition_number)
+                                      : nlohmann::json("inf")},
+             {"points", r.points},
+             {"valid_points", r.valid_points},
+             {"correction_m", r.correction_m},
+             {"correction_deg", r.correction_rad * 180.0 / M_PI},
+             {"seconds", r.seconds}});
+    }
+    const auto median = [](std::vector<double> v) {
+        if (v.empty()) return 0.0;
+        std::sort(v.begin(), v.end());
+        const std::size_t n = v.size();
+        return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+    };
+    const OdometryConfig& c = odometry.config();
+    json["odometry"] = {{"poses", "estimated"},
+                        {"voxel_size_m", c.voxel_size_m},
+                        {"icp_warmup_scans", c.icp_warmup_scans},
+                        {"sdf_kernel_scale_m", c.sdf_kernel_scale_m},
+                        {"icp_kernel_scale_m", c.icp_kernel_scale_m},
+                        {"counts", counts},
+                        {"median_seconds_per_scan", median(scan_seconds)},
+                        {"median_registration_seconds", median(registration_seconds)},
+                        {"scans", scans}};
+}
+
 /// The stage profile: per stage the median over frames and the run total, plus per frame.
 nlohmann::json profile_to_json(const StageProfile& profile) {
     const StageSeconds medians = profile.frame_medians();
@@ -242,9 +300,55 @@ int run_map(const MapOptions& given_options) {
     seq_options.first_frame = opt.first_frame;
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
-    seq_options.poses_path = opt.poses_path;
+    const bool estimate_requested = opt.poses_path == kEstimatePoses;
+    if (!estimate_requested) seq_options.poses_path = opt.poses_path;
     seq_options.topic = opt.topic;
+    seq_options.poses = PoseFileUse::kIfPresent;
     const ScanSequence selected = ScanSequence::open(data, seq_options);
+    if (!selected.has_poses() && !incremental && !estimate_requested &&
+        !config.odometry.estimate_poses) {
+        const std::string estimate_hint =
+            ", or estimate them with --poses estimate (with --mode incremental while mapping; "
+            "in batch mode by an incremental run first)";
+        if (selected.from_recording()) {
+            throw ConfigError("recording '" + data.string() +
+                              "' carries no poses: pass a TUM trajectory with --poses FILE (lines "
+                              "'t x y z qx qy qz qw', matched to each scan's header stamp)" +
+                              estimate_hint);
+        }
+        throw IoError("no pose file in '" + data.string() +
+                      "': put poses.txt (KITTI, 12 numbers a line) or poses_tum.txt (TUM) there, "
+                      "pass one with --poses FILE" +
+                      estimate_hint);
+    }
+    if (estimate_requested) config.odometry.estimate_poses = true;
+    if (!selected.has_poses()) {
+        config.odometry.estimate_poses = true;
+        if (!estimate_requested && !resuming) {
+            std::printf(
+                "'%s' has no pose file: estimating the poses while mapping (LiDAR "
+                "odometry on the neural map, docs/odometry.md); they are written to "
+                "%s\n",
+                data.c_str(), (fs::path(opt.out) / "poses.txt").c_str());
+        }
+    }
+    if (!selected.has_poses() && opt.holdout_every > 0) {
+        throw ConfigError("--holdout-every scores the map on held-out scans at their poses, but '" +
+                          data.string() +
+                          "' has none: map without --holdout-every, or give a pose file");
+    }
+    if (config.odometry.estimate_poses && selected.has_poses() && !resuming) {
+        std::printf(
+            "estimating the poses%s; the data's poses are used only to place the first scan "
+            "(the world frame) and to score\n",
+            incremental ? " while mapping" : "");
+    }
+    if (config.odometry.estimate_poses && !incremental && !resuming) {
+        std::printf(
+            "batch mode: the poses come from an incremental run first (its map and poses in "
+            "%s), then all scans are trained at them\n",
+            (fs::path(opt.out) / "odometry").c_str());
+    }
     // With --holdout-every N the map never sees every N-th scan; they score it afterwards.
     const HoldoutSplit split = split_holdout(selected, opt.holdout_every);
     const ScanSequence sequence = selected.subset(split.mapped);
@@ -277,9 +381,18 @@ int run_map(const MapOptions& given_options) {
 
     std::optional<SequenceMap> batch_map;
     std::optional<IncrementalSequenceMap> incremental_map;
+    // Batch mode with estimated poses: the odometry of an incremental run, then the batch map at
+    // its poses. The odometry run is deterministic, so a resumed run repeats it (without a
+    // checkpoint of its own) and goes on from the batch training's checkpoint.
+    std::optional<IncrementalSequenceMap> odometry_run;
     try {
         if (incremental) {
             incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
+        } else if (config.odometry.estimate_poses) {
+            odometry_run = map_sequence_incremental(config, sequence, out / "odometry", "odometry");
+            const std::vector<Eigen::Isometry3d>& poses = odometry_run->odometry->poses();
+            write_kitti_poses(out / "poses.txt", poses);
+            batch_map = map_sequence(config, sequence.with_poses(poses), out, {}, &control);
         } else {
             batch_map = map_sequence(config, sequence, out, {}, &control);
         }
@@ -330,6 +443,11 @@ int run_map(const MapOptions& given_options) {
     add_product_stats(json, sdf, products, out);
     json["loss"] = {{"bce", stats.final_bce}, {"eikonal", stats.final_eikonal}};
     if (incremental) add_incremental_stats(*incremental_map, json);
+    const IncrementalSequenceMap* odometry_map = incremental && incremental_map->odometry
+                                                     ? &*incremental_map
+                                                 : odometry_run ? &*odometry_run
+                                                                : nullptr;
+    if (odometry_map) add_odometry_stats(*odometry_map, json);
     const StageProfile& profile = incremental ? incremental_map->profile : batch_map->profile;
     json["profile"] = profile_to_json(profile);
 
@@ -341,6 +459,16 @@ int run_map(const MapOptions& given_options) {
         std::printf("incremental: median %.3f s/frame with %d threads\n",
                     json["incremental"]["median_seconds_per_frame"].get<double>(),
                     json["incremental"]["threads_used"].get<int>());
+    }
+    if (odometry_map) {
+        const nlohmann::json& o = json["odometry"];
+        std::string counts;
+        for (const auto& [source, n] : o["counts"].items()) {
+            counts += (counts.empty() ? "" : ", ") + std::to_string(n.get<int>()) + " " + source;
+        }
+        std::printf("odometry: %zu poses (%s), median %.3f s/scan with mapping; wrote %s\n",
+                    odometry_map->odometry->poses().size(), counts.c_str(),
+                    o["median_seconds_per_scan"].get<double>(), (out / "poses.txt").c_str());
     }
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
                 (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), products.mesh.triangles);
@@ -400,6 +528,10 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
                     "Incremental mode: write OUT/progress/mesh_NNNNNN.ply every K frames");
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
+    cmd->get_option("--poses")->description(
+        "Pose file (default: found in DATA; for a recording a TUM trajectory matched to the "
+        "scans by time), or `estimate`: estimate each scan's pose while mapping (in batch mode "
+        "by an incremental run first; incremental mode does so for data without poses)");
     add_topic_option(cmd, opt->topic);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     add_holdout_option(cmd, opt->holdout_every);

@@ -263,3 +263,29 @@ TEST(ScanSequence, EmptyBinIsAScanWithoutPoints) {
     EXPECT_TRUE(seq.load(1).points_sensor.empty());
     EXPECT_EQ(seq.load(2).points_sensor, scan_points(2));
 }
+
+TEST(ScanSequence, PosesIfPresentOpensADirectoryWithoutPosesAtIdentity) {
+    const fs::path dir = make_kitti("poses_if_present", 4, 4);
+    shine::ScanSequenceOptions options;
+    options.poses = shine::PoseFileUse::kIfPresent;
+    // With a pose file it is read as usual.
+    const auto with_file = shine::ScanSequence::open(dir, options);
+    EXPECT_TRUE(with_file.has_poses());
+    EXPECT_TRUE(with_file.pose(2).matrix().isApprox(trajectory(4)[2].matrix(), kPoseTolerance));
+    // Without one: identity poses, has_poses() false, frame selection still applies.
+    fs::remove(dir / "poses.txt");
+    EXPECT_THROW(shine::ScanSequence::open(dir), shine::IoError);
+    options.frame_step = 2;
+    const auto without = shine::ScanSequence::open(dir, options);
+    EXPECT_FALSE(without.has_poses());
+    ASSERT_EQ(without.size(), 2u);
+    EXPECT_TRUE(without.pose(1).isApprox(Eigen::Isometry3d::Identity()));
+    EXPECT_EQ(without.load(1).points_sensor, scan_points(2));
+    EXPECT_FALSE(without.subset({1}).has_poses());
+    // Poses given afterwards (batch mapping on estimated poses).
+    const auto placed = without.with_poses(trajectory(2));
+    EXPECT_TRUE(placed.has_poses());
+    EXPECT_TRUE(placed.load(1).T_world_sensor.isApprox(trajectory(2)[1]));
+    EXPECT_EQ(placed.load(1).points_sensor, scan_points(2));
+    EXPECT_THROW(without.with_poses(trajectory(3)), shine::DataError);
+}

@@ -163,33 +163,38 @@ ScanSequence ScanSequence::open_recording(const fs::path& path,
     const std::vector<std::size_t> selected =
         select_frames(all.size(), options, path.string(), "messages");
 
-    if (options.poses_path.empty()) {
+    const bool no_poses = options.poses == PoseFileUse::kIfPresent && options.poses_path.empty();
+    if (options.poses_path.empty() && !no_poses) {
         throw ConfigError(
             "recording '" + path.string() +
             "' carries no poses ShineVDB can use yet: pass a TUM trajectory with --poses FILE "
             "(lines 't x y z qx qy qz qw'; t in seconds, matched to each scan's header stamp "
             "and interpolated between poses)");
     }
-    if (options.pose_format != "auto" && options.pose_format != "tum") {
+    if (!no_poses && options.pose_format != "auto" && options.pose_format != "tum") {
         throw ConfigError("recording '" + path.string() + "': pose_format '" + options.pose_format +
                           "' cannot be matched by time; give a TUM trajectory (pose_format tum "
                           "or auto)");
     }
-    if (options.pose_format == "auto" && fs::exists(options.poses_path) &&
+    if (!no_poses && options.pose_format == "auto" && fs::exists(options.poses_path) &&
         detect_pose_format(options.poses_path) != "tum") {
         throw ConfigError("pose file '" + options.poses_path.string() +
                           "' looks like KITTI poses (12 numbers a line, no timestamps); a "
                           "recording's scans are matched to poses by time: give a TUM "
                           "trajectory (t x y z qx qy qz qw)");
     }
-    const std::vector<StampedPose> poses = read_tum_poses(options.poses_path);
-    check_pose_times(poses, options.poses_path.string());
+    std::vector<StampedPose> poses;
+    if (!no_poses) {
+        poses = read_tum_poses(options.poses_path);
+        check_pose_times(poses, options.poses_path.string());
+    }
     Eigen::Isometry3d calib = Eigen::Isometry3d::Identity();
     const bool calibrated = !options.calib_path.empty();
     if (calibrated) calib = read_kitti_calib_tr(options.calib_path);
 
     ScanSequence seq;
     seq.dir_ = path;
+    seq.has_poses_ = !no_poses;
     // The header stamps decide the poses; reading them is one pass over the selected messages
     // (for SQLite only their first bytes), one message in memory at a time.
     Progress progress("index " + state->topic.name, selected.size());
@@ -199,8 +204,11 @@ ScanSequence ScanSequence::open_recording(const fs::path& path,
         const std::string where = name + ", message " + std::to_string(selected[k]);
         const double stamp_s = decode_header_stamp_s(reader.read_prefix(m, kStampPrefixBytes),
                                                      state->topic.encoding, where);
-        Eigen::Isometry3d T = interpolate_pose(poses, stamp_s, options.poses_path.string());
-        if (calibrated) T = calib.inverse() * T * calib;
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        if (!no_poses) {
+            T = interpolate_pose(poses, stamp_s, options.poses_path.string());
+            if (calibrated) T = calib.inverse() * T * calib;
+        }
         seq.poses_.push_back(T);
         seq.stamps_s_.push_back(stamp_s);
         seq.scan_paths_.push_back(path);
@@ -237,6 +245,17 @@ ScanSequence ScanSequence::open(const fs::path& dir, const ScanSequenceOptions& 
     }
 
     // Poses.
+    if (options.poses == PoseFileUse::kIfPresent && options.poses_path.empty() &&
+        find_pose_file(dir).empty()) {
+        ScanSequence seq;
+        seq.dir_ = dir;
+        seq.has_poses_ = false;
+        for (std::size_t i : select_frames(all_scans.size(), options, dir.string(), "scans")) {
+            seq.scan_paths_.push_back(all_scans[i]);
+            seq.poses_.push_back(Eigen::Isometry3d::Identity());
+        }
+        return seq;
+    }
     const fs::path pose_path =
         options.poses_path.empty() ? find_pose_file(dir) : options.poses_path;
     if (pose_path.empty()) {
@@ -326,9 +345,21 @@ Scan ScanSequence::load(std::size_t i) const {
     return scan;
 }
 
+ScanSequence ScanSequence::with_poses(const std::vector<Eigen::Isometry3d>& poses) const {
+    if (poses.size() != poses_.size()) {
+        throw DataError("sequence '" + dir_.string() + "' has " + std::to_string(poses_.size()) +
+                        " scans, but " + std::to_string(poses.size()) + " poses were given");
+    }
+    ScanSequence result = *this;
+    result.poses_ = poses;
+    result.has_poses_ = true;
+    return result;
+}
+
 ScanSequence ScanSequence::subset(const std::vector<std::size_t>& indices) const {
     ScanSequence part;
     part.dir_ = dir_;
+    part.has_poses_ = has_poses_;
     part.recording_ = recording_;  // shared: the parts read through one reader, under its lock
     for (const std::size_t i : indices) {
         if (i >= scan_paths_.size()) {

@@ -9,7 +9,9 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
+#include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
+#include "shine/io/tum.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 
 namespace shine {
@@ -33,6 +35,9 @@ void write_incremental_checkpoint(const RunControl& control, const IncrementalSe
     write_checkpoint(control.checkpoint_path, control.run_description, CheckpointMode::kIncremental,
                      [&](BinaryWriter& out) {
                          out.value<std::uint64_t>(frames_done);
+                         // Only with odometry (its own tagged section): the checkpoints of
+                         // runs with given poses keep their layout.
+                         if (result.odometry) result.odometry->save(out);
                          result.mapper->save_state(out);
                          static_assert(std::is_trivially_copyable_v<StageSeconds>);
                          out.array(result.profile.frames);
@@ -62,10 +67,29 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
         in.fail("frames done", std::to_string(frames_done) + " exceeds the sequence's " +
                                    std::to_string(sequence.size()) + " scans");
     }
+    const bool has_odometry = in.next_is_tag("scan odometry");
+    if (has_odometry != (result.odometry != nullptr)) {
+        in.fail("odometry section", has_odometry ? "is there, but this run reads its poses"
+                                                 : "is missing, but this run estimates its poses");
+    }
+    if (result.odometry) {
+        result.odometry->load(in);
+        if (result.odometry->poses().size() != frames_done) {
+            in.fail("estimated poses", std::to_string(result.odometry->poses().size()) +
+                                           " poses for " + std::to_string(frames_done) +
+                                           " frames done");
+        }
+    }
     {
         Progress progress(progress_tag.empty() ? "replay" : "replay " + progress_tag, frames_done);
         for (std::size_t i = 0; i < frames_done; ++i) {
-            result.mapper->replay_scan(sequence.load(i));
+            Scan scan = sequence.load(i);
+            if (result.odometry) {
+                scan.T_world_sensor = result.odometry->poses()[i];
+                if (!result.odometry->mapped(i)) continue;
+            }
+            result.mapper->replay_scan(scan);
+            if (result.odometry) result.odometry->remember_scan(scan);
             progress.update(i + 1);
         }
         progress.finish("map rebuilt");
@@ -101,6 +125,9 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
     IncrementalSequenceMap result;
     result.mapper = std::make_unique<IncrementalMapper>(config);
     IncrementalMapper& mapper = *result.mapper;
+    if (config.odometry.estimate_poses) {
+        result.odometry = std::make_unique<ScanOdometry>(config.odometry);
+    }
     const bool checkpoints = control && !control->checkpoint_path.empty();
     std::size_t first_frame = 0;
     if (checkpoints && control->resume) {
@@ -112,16 +139,41 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
         if (first_frame > 0) progress.update(first_frame, "resumed");
         for (std::size_t i = first_frame; i < sequence.size(); ++i) {
             const auto t_load = std::chrono::steady_clock::now();
-            const Scan scan = sequence.load(i);
+            Scan scan = sequence.load(i);
             const double load_seconds = seconds_since(t_load);
-            const IncrementalFrameStats& frame = mapper.add_scan(scan);
-            StageSeconds stages = frame.stages;
-            stages[Stage::kLoad] = load_seconds;
-            result.profile.frames.push_back(stages);
-            char detail[96];
-            std::snprintf(detail, sizeof(detail), "%.2f s/frame, bce %.4f, %zu corners",
-                          frame.total_seconds, frame.bce, mapper.sdf().octree.num_corners());
-            progress.update(i + 1, detail);
+            const OdometryRecord* pose = nullptr;
+            if (result.odometry) {
+                pose = &result.odometry->estimate(scan, mapper.sdf());
+                scan.T_world_sensor = result.odometry->poses().back();
+            }
+            if (pose && pose->source == PoseSource::kSkipped) {
+                std::fprintf(stderr,
+                             "\nwarning: scan %zu ('%s') has %llu registration points, fewer than "
+                             "odometry.min_scan_points = %d: not mapped, its pose is the "
+                             "constant-velocity prediction\n",
+                             i, scan.source.string().c_str(),
+                             static_cast<unsigned long long>(pose->points),
+                             config.odometry.min_scan_points);
+                progress.update(i + 1, "skipped");
+            } else {
+                const IncrementalFrameStats& frame = mapper.add_scan(scan);
+                if (result.odometry) result.odometry->remember_scan(scan);
+                StageSeconds stages = frame.stages;
+                stages[Stage::kLoad] = load_seconds;
+                result.profile.frames.push_back(stages);
+                char detail[128];
+                if (pose) {
+                    std::snprintf(detail, sizeof(detail),
+                                  "%.2f s/frame, pose %s (%.2f s), bce %.4f, %zu corners",
+                                  frame.total_seconds + pose->seconds, to_string(pose->source),
+                                  pose->seconds, frame.bce, mapper.sdf().octree.num_corners());
+                } else {
+                    std::snprintf(detail, sizeof(detail), "%.2f s/frame, bce %.4f, %zu corners",
+                                  frame.total_seconds, frame.bce,
+                                  mapper.sdf().octree.num_corners());
+                }
+                progress.update(i + 1, detail);
+            }
             const bool last = i + 1 == sequence.size();
             if (mesh_every > 0 && ((i + 1) % static_cast<std::size_t>(mesh_every) == 0) && !last) {
                 ProgressMesh snapshot;
@@ -152,6 +204,18 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
         char detail[64];
         std::snprintf(detail, sizeof(detail), "median %.2f s/frame", mapper.median_frame_seconds());
         progress.finish(detail);
+    }
+    if (result.odometry) {
+        const std::vector<Eigen::Isometry3d>& poses = result.odometry->poses();
+        write_kitti_poses(out_dir / "poses.txt", poses);
+        if (sequence.from_recording()) {
+            std::vector<StampedPose> stamped(poses.size());
+            for (std::size_t i = 0; i < poses.size(); ++i) {
+                stamped[i].timestamp_s = sequence.stamp_s(i);
+                stamped[i].T_world_sensor = poses[i];
+            }
+            write_tum_poses(out_dir / "poses_tum.txt", stamped);
+        }
     }
     // The map is final: its training state's memory goes to the products.
     mapper.release_training_state();

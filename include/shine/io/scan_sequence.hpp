@@ -19,10 +19,15 @@
 // (about 50 bytes a message); each load() reads and decodes one message. Opening reads every
 // selected message's stamp: ROS 1 and MCAP readers keep each message's first bytes while
 // indexing, SQLite reads just those bytes.
+//
+// Mapping without poses (the odometry estimates them): with ScanSequenceOptions::poses
+// kIfPresent a directory without a pose file (or a recording without one) opens with identity
+// poses and has_poses() false.
 #pragma once
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -42,6 +47,12 @@ struct Scan {
     std::vector<double> point_time_s;
 };
 
+/// Whether a sequence must come with poses.
+enum class PoseFileUse : std::uint8_t {
+    kRequired,  ///< no pose file is an error (the default)
+    kIfPresent  ///< no pose file: identity poses, has_poses() false
+};
+
 /// How to open a sequence; every member has a sensible default.
 struct ScanSequenceOptions {
     std::filesystem::path poses_path;  ///< empty: found in the directory
@@ -51,6 +62,7 @@ struct ScanSequenceOptions {
     int last_frame = -1;               ///< last scan index used (inclusive), -1 = all
     int frame_step = 1;                ///< use every n-th scan
     std::string topic;                 ///< recordings: the PointCloud2 topic; empty: the only one
+    PoseFileUse poses = PoseFileUse::kRequired;  ///< whether poses must exist
 };
 
 /// Lazily loaded scan sequence. Opening validates the layout and the pose count; scans are read
@@ -67,8 +79,13 @@ class ScanSequence {
     static bool is_recording(const std::filesystem::path& path);
 
     std::size_t size() const { return scan_paths_.size(); }
-    /// T_world_sensor of scan i (calibration applied).
+    /// T_world_sensor of scan i (calibration applied; the identity when !has_poses()).
     const Eigen::Isometry3d& pose(std::size_t i) const { return poses_.at(i); }
+    /// Whether the poses come from the data (false: identity placeholders, see PoseFileUse).
+    bool has_poses() const { return has_poses_; }
+    /// The same scans at `poses_world_sensor` (one per scan): batch mapping on estimated poses.
+    /// Throws DataError if the count differs.
+    ScanSequence with_poses(const std::vector<Eigen::Isometry3d>& poses_world_sensor) const;
     const std::filesystem::path& scan_path(std::size_t i) const { return scan_paths_.at(i); }
     const std::filesystem::path& directory() const { return dir_; }
     /// Acquisition time of scan i in seconds (recordings: header stamp; files: 0).
@@ -90,6 +107,7 @@ class ScanSequence {
     std::filesystem::path dir_;
     std::vector<std::filesystem::path> scan_paths_;
     std::vector<Eigen::Isometry3d> poses_;
+    bool has_poses_ = true;
     std::vector<double> stamps_s_;               ///< recordings only
     std::shared_ptr<RecordingState> recording_;  ///< recordings only
     /// Recordings only, after subset(): scan i is the recording's selected message

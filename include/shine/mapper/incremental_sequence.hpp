@@ -3,6 +3,11 @@
 // surface.vdb, mesh.ply (write_map_products, as in batch mode), and with
 // incremental.mesh_every = K a mesh of the map so far every K frames,
 // OUT/progress/mesh_NNNNNN.ply (NNNNNN the frame just integrated), so a user can watch it grow.
+//
+// With config.odometry.estimate_poses the scans' own poses are ignored: each scan's pose is
+// estimated on the map built so far (scan_odometry.hpp) and the scan is mapped there; the
+// estimated poses are written to OUT/poses.txt (KITTI 3x4, one line per scan, skipped scans
+// included) and, for a recording (scans with times), OUT/poses_tum.txt.
 #pragma once
 
 #include <cstddef>
@@ -15,6 +20,7 @@
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
 #include "shine/mapper/map_sequence.hpp"
+#include "shine/mapper/scan_odometry.hpp"
 
 namespace shine {
 
@@ -32,6 +38,8 @@ struct IncrementalSequenceMap {
     std::unique_ptr<IncrementalMapper> mapper;
     MapProducts products;
     std::vector<ProgressMesh> progress_meshes;
+    /// The estimated poses and per-scan records (null unless config.odometry.estimate_poses).
+    std::unique_ptr<ScanOdometry> odometry;
     /// Per scan: load, preprocess, allocate, normals, sample, train, importance; bake and mesh of
     /// the final products once (progress meshes are not counted).
     StageProfile profile;
@@ -47,7 +55,8 @@ struct IncrementalSequenceMap {
 /// when that is true, writes a checkpoint and throws Interrupted (no product is written); it also
 /// writes one every control->checkpoint_interval_s. With control->resume it replays the frames
 /// the checkpoint had integrated (IncrementalMapper::replay_scan), restores the state and goes on
-/// with the next frame.
+/// with the next frame; with odometry the checkpoint holds the estimated poses, so that the
+/// replayed scans sit where they were mapped.
 IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config,
                                                 const ScanSequence& sequence,
                                                 const std::filesystem::path& out_dir,

@@ -26,6 +26,7 @@
 #include "shine/io/scene_preset.hpp"
 #include "shine/map/feature_octree.hpp"
 #include "shine/mapper/incremental_config.hpp"
+#include "shine/mapper/odometry_config.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/decoder.hpp"
@@ -70,6 +71,7 @@ struct MapperConfig {
     /// scan's steps)
     float final_learning_rate_ratio = 0.1f;
     IncrementalConfig incremental;  ///< `shine map --mode incremental`
+    OdometryConfig odometry;        ///< poses estimated while mapping (incremental mode)
     BakeConfig bake;
     MeshConfig mesh;
     /// Memory budget of the map (features + structure + decoder, MB = 10^6 bytes), checked after

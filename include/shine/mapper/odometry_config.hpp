@@ -1,0 +1,52 @@
+// Settings of LiDAR odometry while mapping (`shine map --mode incremental --poses estimate`,
+// scan_odometry.hpp): which points register, how the solver stops and when it trusts the result.
+// The defaults were measured on the simulated street at 0.2 m leaves (docs/odometry.md).
+#pragma once
+
+namespace shine {
+
+struct OdometryConfig {
+    /// Estimate every scan's pose instead of reading it (incremental mode only). The CLI sets it
+    /// for `--poses estimate` and for data without a pose file. YAML: odometry.estimate_poses.
+    bool estimate_poses = false;
+    /// Registration points: at most one per voxel of this size (sensor frame), within the range
+    /// window below (registration_points.hpp).
+    double voxel_size_m = 0.5;
+    double min_range_m = 1.5;   ///< closer points do not register (the vehicle itself)
+    double max_range_m = 60.0;  ///< farther points do not register
+    /// Levenberg-Marquardt iterations per scan (registration_solver.hpp).
+    int max_iterations = 30;
+    /// The first icp_warmup_scans scans after the first one register by point-to-plane ICP to
+    /// the previous scans' points: the neural map of one or two scans is too young.
+    int icp_warmup_scans = 3;
+    /// After the warm-up, each scan is first aligned by ICP to the last icp_reference_scans scans
+    /// and then refined on the neural map's SDF (one stage, sdf_kernel_scale_m). false: the SDF
+    /// registration alone, coarse to fine from the prediction. Measured on the street: the SDF
+    /// alone loses track at 2-3 m between scans, ICP first does not (docs/odometry.md).
+    bool icp_before_sdf = true;
+    /// ICP's reference: the points of this many previous scans (world frame).
+    int icp_reference_scans = 3;
+    /// ICP: scan points farther than this from every reference point have no match.
+    double icp_max_correspondence_m = 1.0;
+    /// Geman-McClure scale of ICP's point-to-plane residuals, m.
+    double icp_kernel_scale_m = 0.2;
+    /// ICP runs coarse to fine: first with matches up to this distance and a kernel of a quarter
+    /// of it, then with the two settings above from that result. The second scan starts at rest
+    /// (one pose behind it), metres from its pose; 1 m matches alone stop at a wrong minimum
+    /// there (measured: 0.4 of 3 m). 0 (or a value not above icp_max_correspondence_m): one stage.
+    double icp_coarse_correspondence_m = 4.0;
+    /// Geman-McClure scale of the SDF residuals (the map's SDF at the points), m. Small: points
+    /// the map has not seen yet (its untrained margin) must not pull the pose.
+    double sdf_kernel_scale_m = 0.02;
+    /// Without icp_before_sdf the SDF registration runs coarse to fine as well: first with this
+    /// kernel scale, then with sdf_kernel_scale_m. 0 (or a value not above it): one stage.
+    double sdf_coarse_kernel_scale_m = 0.1;
+    /// A solve whose range-scaled Hessian is worse conditioned is not trusted (the prediction is
+    /// kept): a single plane or a featureless corridor.
+    double max_condition_number = 1e4;
+    /// Scans with fewer registration points are not mapped (a warning; their pose is the
+    /// prediction).
+    int min_scan_points = 100;
+};
+
+}  // namespace shine

@@ -1,0 +1,112 @@
+// LiDAR odometry on the neural map: the pose of each new scan, estimated before the scan is
+// mapped (`shine map --mode incremental --poses estimate`).
+//
+// Per scan (estimate):
+//   1. the registration points: range window and one point per voxel (registration_points.hpp);
+//      a scan with fewer than min_scan_points of them is skipped (not mapped, pose = step 2's);
+//   2. the prediction: the first scan stays at its given pose (the identity for data without
+//      poses; with poses, the data's first one, so that the map lies in the data's world frame
+//      and can be scored against it); the next ones move on at the
+//      constant velocity of the last two estimated poses (se3.hpp's predict_constant_velocity;
+//      the second scan, with one pose behind it, at rest);
+//   3. while the map is young (scans 1 .. icp_warmup_scans) point-to-plane ICP against the points
+//      of the last icp_reference_scans scans in the world frame (point_to_plane_icp.hpp), coarse
+//      to fine (a wide stage that finds the basin, then a narrow one that ignores what does not
+//      fit: odometry_config.hpp); afterwards registration to the neural map's SDF
+//      (sdf_registration.hpp through NeuralSdfField), started from that ICP's result
+//      (icp_before_sdf, the default: the SDF is metric only near surfaces, so its basin is
+//      narrow) or coarse to fine from the prediction;
+//   4. a registration that is not accepted (RegistrationResult::accepted) leaves the prediction,
+//      and the record says so.
+// The mapper then maps the scan at the estimated pose. Deterministic: the registration sums are
+// the same bits for any thread count.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <deque>
+#include <vector>
+
+#include "shine/io/scan_sequence.hpp"
+#include "shine/mapper/odometry_config.hpp"
+#include "shine/model/neural_sdf.hpp"
+#include "shine/odometry/registration_solver.hpp"
+
+namespace shine {
+
+class BinaryReader;
+class BinaryWriter;
+
+/// Where a scan's estimated pose came from.
+enum class PoseSource : std::uint8_t {
+    kFirst,       ///< the first scan: its given pose (identity without poses), the world frame
+    kIcp,         ///< accepted point-to-plane ICP
+    kSdf,         ///< accepted registration to the neural map
+    kPrediction,  ///< the registration was not accepted: the constant-velocity prediction
+    kSkipped      ///< too few points: not registered, not mapped; pose = the prediction
+};
+
+/// "first" / "icp" / "sdf" / "prediction" / "skipped".
+const char* to_string(PoseSource source);
+
+/// Which registration was tried (kSdf also when ICP found its start).
+enum class RegistrationMethod : std::uint8_t { kNone, kIcp, kSdf };
+
+/// "none" / "icp" / "sdf".
+const char* to_string(RegistrationMethod method);
+
+/// What the odometry did with one scan (plain data, stored in checkpoints).
+struct OdometryRecord {
+    PoseSource source = PoseSource::kFirst;
+    RegistrationMethod tried = RegistrationMethod::kNone;
+    RegistrationStatus status = RegistrationStatus::kTooFewPoints;  ///< of the last stage
+    bool accepted = false;
+    std::int32_t iterations = 0;  ///< over all stages
+    /// Sum of rho (m^2) at the start and the end of the LAST stage (whose kernel they use).
+    double initial_cost = 0.0;
+    double final_cost = 0.0;
+    double condition_number = 0.0;   ///< of the range-scaled H at the last iterate
+    std::uint64_t points = 0;        ///< registration points of the scan
+    std::uint64_t valid_points = 0;  ///< of them, with a residual at the last iterate
+    /// |log(T_prediction^-1 T_estimate)|: how far the registration moved the pose, m and rad.
+    double correction_m = 0.0;
+    double correction_rad = 0.0;
+    double seconds = 0.0;  ///< selection, reference and registration
+};
+
+/// The odometry of one run: poses and records of the scans seen so far.
+class ScanOdometry {
+  public:
+    /// Throws ConfigError naming the odometry.* key of an invalid setting.
+    explicit ScanOdometry(const OdometryConfig& config);
+
+    /// Estimates the pose of the next scan (`scan.points_sensor`; its own pose is used for the
+    /// first scan only, as the world frame's anchor) with
+    /// `map` holding the scans estimated before it (steps 1-4 of the file comment). Returns the
+    /// record; pose() is the estimate. Call remember_scan() once the scan is mapped.
+    const OdometryRecord& estimate(const Scan& scan, const NeuralSdf& map);
+
+    /// Keeps `scan` (at its T_world_sensor) as an ICP reference while ICP scans are still to
+    /// come. Called after estimate() for mapped scans, and when resuming for the replayed ones.
+    void remember_scan(const Scan& scan);
+
+    /// Whether the scan of record `i` is to be mapped (not skipped).
+    bool mapped(std::size_t i) const { return records_.at(i).source != PoseSource::kSkipped; }
+    const std::vector<Eigen::Isometry3d>& poses() const { return poses_; }
+    const std::vector<OdometryRecord>& records() const { return records_; }
+    const OdometryConfig& config() const { return config_; }
+
+    /// Poses and records for a checkpoint; load() restores them (the ICP reference is rebuilt
+    /// by remember_scan() on the replayed scans). load() throws IoError via the reader.
+    void save(BinaryWriter& out) const;
+    void load(BinaryReader& in);
+
+  private:
+    OdometryConfig config_;
+    std::vector<Eigen::Isometry3d> poses_;
+    std::vector<OdometryRecord> records_;
+    /// Registration-thinned points (world frame) of the last icp_reference_scans scans.
+    std::deque<std::vector<Eigen::Vector3d>> reference_world_;
+};
+
+}  // namespace shine

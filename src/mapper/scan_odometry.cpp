@@ -1,0 +1,244 @@
+#include "shine/mapper/scan_odometry.hpp"
+
+#include <chrono>
+#include <string>
+#include <type_traits>
+#include <utility>
+
+#include "shine/core/error.hpp"
+#include "shine/io/binary_stream.hpp"
+#include "shine/mapper/neural_sdf_field.hpp"
+#include "shine/odometry/point_to_plane_icp.hpp"
+#include "shine/odometry/registration_points.hpp"
+#include "shine/odometry/sdf_registration.hpp"
+#include "shine/odometry/se3.hpp"
+
+namespace shine {
+namespace {
+
+void require(bool ok, const std::string& key, const std::string& rule) {
+    if (!ok) throw ConfigError("odometry." + key + " " + rule);
+}
+
+RegistrationPointConfig point_config(const OdometryConfig& c, double voxel_size_m) {
+    RegistrationPointConfig points;
+    points.min_range_m = c.min_range_m;
+    points.max_range_m = c.max_range_m;
+    points.voxel_size_m = voxel_size_m;
+    return points;
+}
+
+RegistrationSolverConfig solver_config(const OdometryConfig& c, double kernel_scale_m) {
+    RegistrationSolverConfig solver;
+    solver.max_iterations = c.max_iterations;
+    solver.max_condition_number = c.max_condition_number;
+    solver.kernel.type = RobustKernelType::kGemanMcClure;
+    solver.kernel.scale_m = kernel_scale_m;
+    return solver;
+}
+
+}  // namespace
+
+const char* to_string(PoseSource source) {
+    switch (source) {
+        case PoseSource::kFirst:
+            return "first";
+        case PoseSource::kIcp:
+            return "icp";
+        case PoseSource::kSdf:
+            return "sdf";
+        case PoseSource::kPrediction:
+            return "prediction";
+        case PoseSource::kSkipped:
+            return "skipped";
+    }
+    return "?";
+}
+
+const char* to_string(RegistrationMethod method) {
+    switch (method) {
+        case RegistrationMethod::kNone:
+            return "none";
+        case RegistrationMethod::kIcp:
+            return "icp";
+        case RegistrationMethod::kSdf:
+            return "sdf";
+    }
+    return "?";
+}
+
+ScanOdometry::ScanOdometry(const OdometryConfig& config) : config_(config) {
+    require(config.voxel_size_m >= 0.0, "voxel_size_m", "must be >= 0");
+    require(config.min_range_m >= 0.0 && config.max_range_m > config.min_range_m, "max_range_m",
+            "must exceed odometry.min_range_m (>= 0)");
+    require(config.max_iterations >= 1, "max_iterations", "must be at least 1");
+    require(config.icp_warmup_scans >= 0, "icp_warmup_scans", "must be >= 0");
+    require(config.icp_reference_scans >= 1, "icp_reference_scans", "must be at least 1");
+    require(config.icp_max_correspondence_m > 0.0, "icp_max_correspondence_m", "must be positive");
+    require(config.icp_kernel_scale_m > 0.0, "icp_kernel_scale_m", "must be positive");
+    require(config.sdf_kernel_scale_m > 0.0, "sdf_kernel_scale_m", "must be positive");
+    require(config.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
+    require(config.min_scan_points >= 0, "min_scan_points", "must be >= 0");
+}
+
+const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& map) {
+    const auto start = std::chrono::steady_clock::now();
+    OdometryRecord record;
+    // 1. Registration points.
+    const std::vector<Eigen::Vector3f> points =
+        select_registration_points(scan.points_sensor, point_config(config_, config_.voxel_size_m));
+    record.points = points.size();
+
+    // 2. Prediction.
+    const std::size_t k = poses_.size();
+    Eigen::Isometry3d prediction = scan.T_world_sensor;  // the first scan anchors the world
+    if (k == 1) prediction = poses_[0];
+    if (k >= 2) prediction = predict_constant_velocity(poses_[k - 2], poses_[k - 1]);
+
+    Eigen::Isometry3d estimate = prediction;
+    if (points.size() < static_cast<std::size_t>(config_.min_scan_points)) {
+        record.source = PoseSource::kSkipped;
+    } else if (k == 0) {
+        record.source = PoseSource::kFirst;
+        record.accepted = true;
+    } else {
+        // 3. Registration from the prediction, coarse to fine: a stage starts from the previous
+        // stage's pose if that was accepted, else from the prediction.
+        RegistrationResult result;
+        int iterations = 0;
+        const bool icp = k <= static_cast<std::size_t>(config_.icp_warmup_scans);
+        // After the warm-up, ICP (when icp_before_sdf) only finds the SDF registration's start.
+        Eigen::Isometry3d sdf_start = prediction;
+        bool icp_found_start = false;
+        if (icp || config_.icp_before_sdf) {
+            record.tried = RegistrationMethod::kIcp;
+            std::vector<Eigen::Vector3d> reference;
+            for (const auto& scan_points : reference_world_) {
+                reference.insert(reference.end(), scan_points.begin(), scan_points.end());
+            }
+            if (!reference.empty()) {
+                const ReferencePlanes planes(reference, PlaneFitConfig{});
+                std::vector<std::pair<double, double>> stages;  // correspondence, kernel scale
+                const double coarse_m = config_.icp_coarse_correspondence_m;
+                if (coarse_m > config_.icp_max_correspondence_m) {
+                    stages.emplace_back(coarse_m, 0.25 * coarse_m);
+                }
+                stages.emplace_back(config_.icp_max_correspondence_m, config_.icp_kernel_scale_m);
+                Eigen::Isometry3d from = prediction;
+                for (const auto& [correspondence_m, scale_m] : stages) {
+                    PointToPlaneIcpConfig icp_config;
+                    icp_config.max_correspondence_distance_m = correspondence_m;
+                    icp_config.solver = solver_config(config_, scale_m);
+                    result = register_point_to_plane(points, from, planes, icp_config);
+                    iterations += result.iterations;
+                    if (result.accepted()) from = result.T_world_sensor;
+                }
+                sdf_start = from;
+                icp_found_start = result.accepted();
+            }
+        }
+        if (!icp) {
+            record.tried = RegistrationMethod::kSdf;
+            // From ICP's pose the SDF refines in one narrow stage; from the prediction, coarse to
+            // fine.
+            std::vector<double> scales;
+            if (!icp_found_start &&
+                config_.sdf_coarse_kernel_scale_m > config_.sdf_kernel_scale_m) {
+                scales.push_back(config_.sdf_coarse_kernel_scale_m);
+            }
+            scales.push_back(config_.sdf_kernel_scale_m);
+            const NeuralSdfField field(map);
+            Eigen::Isometry3d from = sdf_start;
+            for (const double scale_m : scales) {
+                SdfRegistrationConfig sdf_config;
+                sdf_config.solver = solver_config(config_, scale_m);
+                result = register_to_sdf(points, from, field, sdf_config);
+                iterations += result.iterations;
+                if (result.accepted()) from = result.T_world_sensor;
+            }
+        }
+        // 4. Accepted (the last stage), or the prediction.
+        record.status = result.status;
+        record.accepted = result.accepted();
+        record.iterations = iterations;
+        record.initial_cost = result.initial_cost;
+        record.final_cost = result.final_cost;
+        record.condition_number = result.condition_number;
+        record.valid_points = result.num_valid_points;
+        if (record.accepted) {
+            estimate = result.T_world_sensor;
+            record.source = icp ? PoseSource::kIcp : PoseSource::kSdf;
+        } else {
+            record.source = PoseSource::kPrediction;
+        }
+        const Vector6d correction = se3_log(prediction.inverse() * estimate);
+        record.correction_m = correction.head<3>().norm();
+        record.correction_rad = correction.tail<3>().norm();
+    }
+    record.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    // Rounded back onto SO(3): the constant-velocity prediction multiplies by the transpose of
+    // the previous rotation, so a rotation that is off by e grows by about 3e a scan, and after
+    // 30 scans the rounding of the first one is a millidegree shear.
+    estimate.linear() = Eigen::Quaterniond(estimate.linear()).normalized().toRotationMatrix();
+    poses_.push_back(estimate);
+    records_.push_back(record);
+    return records_.back();
+}
+
+void ScanOdometry::remember_scan(const Scan& scan) {
+    // Only while a scan still to come registers by ICP: scan poses_.size() is the next one.
+    if (!config_.icp_before_sdf &&
+        poses_.size() > static_cast<std::size_t>(config_.icp_warmup_scans)) {
+        reference_world_.clear();
+        return;
+    }
+    // The reference is denser than the scan (half its voxel), so that each scan point finds a
+    // neighbour on the same surface and the plane fits have points to use.
+    const std::vector<Eigen::Vector3f> points = select_registration_points(
+        scan.points_sensor, point_config(config_, 0.5 * config_.voxel_size_m));
+    std::vector<Eigen::Vector3d> world(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        world[i] = scan.T_world_sensor * points[i].cast<double>();
+    }
+    reference_world_.push_back(std::move(world));
+    while (reference_world_.size() > static_cast<std::size_t>(config_.icp_reference_scans)) {
+        reference_world_.pop_front();
+    }
+}
+
+void ScanOdometry::save(BinaryWriter& out) const {
+    out.tag("scan odometry");
+    static_assert(std::is_trivially_copyable_v<OdometryRecord>);
+    out.array(records_);
+    std::vector<double> matrices;
+    matrices.reserve(poses_.size() * 12);
+    for (const Eigen::Isometry3d& T : poses_) {
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 4; ++c) matrices.push_back(T.matrix()(r, c));
+        }
+    }
+    out.array(matrices);
+}
+
+void ScanOdometry::load(BinaryReader& in) {
+    in.expect_tag("scan odometry");
+    std::vector<OdometryRecord> records = in.array<OdometryRecord>("odometry records");
+    const std::vector<double> matrices = in.array<double>("estimated poses");
+    if (matrices.size() != records.size() * 12) {
+        in.fail("estimated poses", "hold " + std::to_string(matrices.size() / 12) + " poses for " +
+                                       std::to_string(records.size()) + " odometry records");
+    }
+    poses_.clear();
+    for (std::size_t i = 0; i < records.size(); ++i) {
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 4; ++c) T.matrix()(r, c) = matrices[i * 12 + r * 4 + c];
+        }
+        poses_.push_back(T);
+    }
+    records_ = std::move(records);
+    reference_world_.clear();
+}
+
+}  // namespace shine

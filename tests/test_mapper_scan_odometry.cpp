@@ -1,0 +1,173 @@
+// The odometry while mapping (scan_odometry.hpp): the first scan anchors the world, a warm-up scan
+// is registered by ICP to the scans before it (a known motion recovered in an analytic room), a
+// scan without points is skipped at the prediction, the records survive a checkpoint, and the
+// odometry section of the configuration is parsed and checked.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "shine/core/error.hpp"
+#include "shine/io/binary_stream.hpp"
+#include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/scan_odometry.hpp"
+#include "shine/odometry/se3.hpp"
+
+using namespace shine;
+
+namespace {
+
+constexpr double kTranslationTolM = 0.01;  // 1 cm
+constexpr double kRotationTolRad = 1e-3;   // 0.06 deg
+
+/// Points on the surfaces of a 20 x 16 x 6 m room with two pillars, 0.1 m apart (world frame).
+std::vector<Eigen::Vector3d> room_world() {
+    std::vector<Eigen::Vector3d> points;
+    const double step = 0.1;
+    for (double x = -10; x <= 10; x += step) {
+        for (double y = -8; y <= 8; y += step) {
+            points.emplace_back(x, y, -2.0);  // floor
+        }
+        for (double z = -2; z <= 4; z += step) {
+            points.emplace_back(x, -8.0, z);  // side walls
+            points.emplace_back(x, 8.0, z);
+        }
+    }
+    for (double y = -8; y <= 8; y += step) {
+        for (double z = -2; z <= 4; z += step) {
+            points.emplace_back(-10.0, y, z);  // end walls
+            points.emplace_back(10.0, y, z);
+        }
+    }
+    // Pillars (1 m square) at (3, 2) and (-4, -3): they fix the translation along the walls.
+    for (const Eigen::Vector2d& c : {Eigen::Vector2d(3, 2), Eigen::Vector2d(-4, -3)}) {
+        for (double s = -0.5; s <= 0.5; s += step) {
+            for (double z = -2; z <= 4; z += step) {
+                points.emplace_back(c.x() + s, c.y() - 0.5, z);
+                points.emplace_back(c.x() + s, c.y() + 0.5, z);
+                points.emplace_back(c.x() - 0.5, c.y() + s, z);
+                points.emplace_back(c.x() + 0.5, c.y() + s, z);
+            }
+        }
+    }
+    return points;
+}
+
+/// The room seen from the sensor at T_world_sensor (every surface point, in the sensor frame).
+Scan room_scan(const Eigen::Isometry3d& T_world_sensor) {
+    Scan scan;
+    const Eigen::Isometry3d T_sensor_world = T_world_sensor.inverse();
+    for (const Eigen::Vector3d& p : room_world()) {
+        scan.points_sensor.push_back((T_sensor_world * p).cast<float>());
+    }
+    scan.source = "room";
+    return scan;
+}
+
+NeuralSdf empty_map() { return NeuralSdf(FeatureOctreeConfig{}, DecoderConfig{}); }
+
+}  // namespace
+
+TEST(ScanOdometry, FirstScanIsTheWorldAndWarmUpScansRegisterByIcp) {
+    OdometryConfig config;
+    config.icp_warmup_scans = 3;
+    ScanOdometry odometry(config);
+    const NeuralSdf map = empty_map();  // not used while ICP registers
+
+    Scan first = room_scan(Eigen::Isometry3d::Identity());
+    EXPECT_EQ(odometry.estimate(first, map).source, PoseSource::kFirst);
+    EXPECT_TRUE(odometry.poses().back().isApprox(Eigen::Isometry3d::Identity()));
+    odometry.remember_scan(first);
+
+    Vector6d xi;
+    xi << 0.4, -0.1, 0.02, 0.0, 0.0, 0.035;  // 0.41 m, 2 deg of yaw
+    const Eigen::Isometry3d truth = se3_exp(xi);
+    Scan second = room_scan(truth);
+    second.T_world_sensor.translation() = Eigen::Vector3d(7, 7, 7);  // ignored after scan 0
+    const OdometryRecord& record = odometry.estimate(second, map);
+    EXPECT_EQ(record.source, PoseSource::kIcp);
+    EXPECT_EQ(record.tried, RegistrationMethod::kIcp);
+    EXPECT_TRUE(record.accepted);
+    EXPECT_LT(record.final_cost, record.initial_cost);
+    EXPECT_GT(record.points, 500u);
+    const Eigen::Isometry3d error = truth.inverse() * odometry.poses().back();
+    EXPECT_LT(error.translation().norm(), kTranslationTolM);
+    EXPECT_LT(rotation_angle_rad(error), kRotationTolRad);
+    // The prediction was the identity (one pose behind): the registration moved it by the motion.
+    EXPECT_NEAR(record.correction_m, truth.translation().norm(), 0.05);
+}
+
+TEST(ScanOdometry, ScanWithoutPointsIsSkippedAtThePrediction) {
+    ScanOdometry odometry(OdometryConfig{});
+    const NeuralSdf map = empty_map();
+    Scan first = room_scan(Eigen::Isometry3d::Identity());
+    odometry.estimate(first, map);
+    odometry.remember_scan(first);
+
+    Scan empty;
+    empty.source = "empty";
+    const OdometryRecord& record = odometry.estimate(empty, map);
+    EXPECT_EQ(record.source, PoseSource::kSkipped);
+    EXPECT_EQ(record.points, 0u);
+    EXPECT_FALSE(odometry.mapped(1));
+    EXPECT_TRUE(odometry.mapped(0));
+    ASSERT_EQ(odometry.poses().size(), 2u);
+    EXPECT_TRUE(odometry.poses()[1].isApprox(odometry.poses()[0]));  // at rest: one pose behind
+
+    // An empty FIRST scan is skipped too (the world is still its identity pose).
+    ScanOdometry fresh(OdometryConfig{});
+    EXPECT_EQ(fresh.estimate(empty, map).source, PoseSource::kSkipped);
+    EXPECT_TRUE(fresh.poses()[0].isApprox(Eigen::Isometry3d::Identity()));
+}
+
+TEST(ScanOdometry, PosesAndRecordsSurviveACheckpoint) {
+    ScanOdometry odometry(OdometryConfig{});
+    const NeuralSdf map = empty_map();
+    Scan first = room_scan(Eigen::Isometry3d::Identity());
+    odometry.estimate(first, map);
+    odometry.remember_scan(first);
+    Vector6d xi;
+    xi << 0.3, 0.0, 0.0, 0.0, 0.0, 0.02;
+    odometry.estimate(room_scan(se3_exp(xi)), map);
+
+    const std::filesystem::path file =
+        std::filesystem::temp_directory_path() / "shine_scan_odometry_checkpoint.bin";
+    {
+        std::ofstream stream(file, std::ios::binary);
+        BinaryWriter out(stream);
+        odometry.save(out);
+    }
+    ScanOdometry restored(OdometryConfig{});
+    {
+        BinaryReader in(file, "checkpoint");
+        restored.load(in);
+        in.expect_end();
+    }
+    std::filesystem::remove(file);
+    ASSERT_EQ(restored.poses().size(), 2u);
+    EXPECT_EQ(restored.poses()[1].matrix(), odometry.poses()[1].matrix());  // bit for bit
+    EXPECT_EQ(restored.records()[1].source, odometry.records()[1].source);
+    EXPECT_EQ(restored.records()[1].final_cost, odometry.records()[1].final_cost);
+}
+
+TEST(ScanOdometry, ConfigurationIsParsedAndChecked) {
+    MapperConfig config;
+    parse_config_yaml("odometry: {estimate_poses: true, voxel_size_m: 0.4, icp_warmup_scans: 5}",
+                      "test", config);
+    EXPECT_TRUE(config.odometry.estimate_poses);
+    EXPECT_EQ(config.odometry.voxel_size_m, 0.4);
+    EXPECT_EQ(config.odometry.icp_warmup_scans, 5);
+    MapperConfig round_trip;
+    parse_config_yaml(config_to_yaml(config), "round trip", round_trip);
+    EXPECT_EQ(round_trip.odometry.icp_warmup_scans, 5);
+    EXPECT_THROW(parse_config_yaml("odometry: {max_iterations: 0}", "test", config), ConfigError);
+    EXPECT_THROW(parse_config_yaml("odometry: {kernel: 1}", "test", config), ConfigError);
+    OdometryConfig bad;
+    bad.max_range_m = bad.min_range_m;
+    try {
+        ScanOdometry odometry(bad);
+        FAIL() << "an empty range window was accepted";
+    } catch (const ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("odometry.max_range_m"), std::string::npos);
+    }
+}
