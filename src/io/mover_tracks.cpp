@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -79,9 +80,14 @@ MoverTrack track_from(const json& value, const Where& where) {
     return track;
 }
 
+/// The shortest of 15 or 17 significant digits that reads back as `value` (0.1, not
+/// 0.10000000000000001).
 std::string exact(double value) {
     char buffer[64];
-    std::snprintf(buffer, sizeof(buffer), "%.17g", value);
+    std::snprintf(buffer, sizeof(buffer), "%.15g", value);
+    if (std::strtod(buffer, nullptr) != value) {
+        std::snprintf(buffer, sizeof(buffer), "%.17g", value);
+    }
     return buffer;
 }
 

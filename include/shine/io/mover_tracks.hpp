@@ -66,7 +66,8 @@ MoverTracks parse_mover_tracks(std::string_view json_text, const std::filesystem
 MoverTracks read_mover_tracks(const std::filesystem::path& path);
 
 /// The "movers" object (one line per mover, two-space indent) that parse_mover_tracks reads back
-/// exactly (numbers with 17 significant digits).
+/// exactly (each number with 15 significant digits, or 17 where
+/// 15 would not read back).
 std::string mover_tracks_to_json(const MoverTracks& tracks);
 
 }  // namespace shine
