@@ -61,6 +61,14 @@ MoverTracks make_street_movers(const StreetMoversConfig& config, const StreetSce
     const double half_road_m = 0.5 * scene.road_width_m;
     const double curb_m = scene.curb_height_m;
     Rng rng(seed);
+    // Cars in one lane share its speed and start at least kCarGap_m apart, so that none drives
+    // through another.
+    constexpr double kCarGap_m = 12.0;
+    const double overtaking_mps = sensor_speed_mps + rng.uniform(3.0, 7.0);
+    const double oncoming_mps = rng.uniform(8.0, 14.0);
+    const double oncoming_start_m =
+        drive_length_m * rng.uniform(0.4, 1.0) + oncoming_mps * end_s * rng.uniform(0.2, 0.5);
+    int num_overtaking = 0, num_oncoming = 0;
     for (int i = 0; i < config.num_movers; ++i) {
         if (i == 0) {
             // Parked in the right parking lane ahead of the sensor, then pulling out: it
@@ -90,19 +98,18 @@ MoverTracks make_street_movers(const StreetMoversConfig& config, const StreetSce
         }
         switch ((i - 1) % 4) {
             case 0: {  // overtaking: starts behind the sensor, faster than it
-                const double speed = sensor_speed_mps + rng.uniform(3.0, 7.0);
-                const Eigen::Vector3d start(-rng.uniform(8.0, 30.0), -kLaneY_m, 0.0);
+                const Eigen::Vector3d start(
+                    -8.0 - kCarGap_m * num_overtaking++ - rng.uniform(0.0, 6.0), -kLaneY_m, 0.0);
                 tracks.movers.push_back(
-                    constant_velocity(MoverKind::kCar, kCarSize_m, start, speed, end_s));
+                    constant_velocity(MoverKind::kCar, kCarSize_m, start, overtaking_mps, end_s));
                 break;
             }
             case 1: {  // oncoming: starts ahead, meets the sensor during the drive
-                const double speed = rng.uniform(8.0, 14.0);
                 const Eigen::Vector3d start(
-                    drive_length_m * rng.uniform(0.4, 1.0) + speed * end_s * rng.uniform(0.2, 0.8),
-                    kLaneY_m, 0.0);
+                    oncoming_start_m + kCarGap_m * num_oncoming++ + rng.uniform(0.0, 6.0), kLaneY_m,
+                    0.0);
                 tracks.movers.push_back(
-                    constant_velocity(MoverKind::kCar, kCarSize_m, start, -speed, end_s));
+                    constant_velocity(MoverKind::kCar, kCarSize_m, start, -oncoming_mps, end_s));
                 break;
             }
             case 2:

@@ -6,6 +6,9 @@
 // from x = 0 to drive_length_m at the centre of the road. Lanes: overtaking cars at y = -2.3 m
 // heading +x, oncoming cars at y = +2.3 m heading -x, the parked car in the right parking lane;
 // cyclists 1.3 m and pedestrians 2.2 m beyond the curbs, on the sidewalk (z = curb height).
+// Cars in one lane share one speed and start at least 12 m apart, so none drives through another
+// (the leaving car may still meet an overtaking one; cyclists and pedestrians, each at their own
+// speed, may pass through each other and through the sidewalk's static objects).
 // Movers are made in the order parked car, then overtaking car, oncoming car, cyclist,
 // pedestrian, repeated, so N >= 5 has every kind.
 #pragma once
