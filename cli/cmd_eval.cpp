@@ -4,13 +4,16 @@
 // cast into the mesh: hit ratio, range errors; eval/heldout_ranges.hpp).
 #include <cstdio>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "command_registry.hpp"
 #include "shine/core/error.hpp"
+#include "shine/eval/ghost_area.hpp"
 #include "shine/eval/heldout_ranges.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
+#include "shine/io/mover_tracks.hpp"
 #include "shine/io/ply.hpp"
 
 namespace shine::cli {
@@ -21,6 +24,7 @@ struct EvalOptions {
     std::string ref_path;
     EvalConfig config;
     bool json = false;
+    std::string movers_path;  ///< simulation.json with movers: also the ghost area
     // Held-out evaluation.
     std::string heldout_dir;
     std::string frames;
@@ -60,19 +64,44 @@ int run_eval(const EvalOptions& options) {
             "give either --ref MESH (a reference surface) or --heldout SEQUENCE (scans the map "
             "never saw), not both or neither");
     }
-    if (!options.heldout_dir.empty()) return run_heldout(options);
+    if (!options.heldout_dir.empty()) {
+        if (!options.movers_path.empty()) {
+            throw ConfigError(
+                "--movers measures ghosts against a reference mesh: use it with "
+                "--ref, not --heldout");
+        }
+        return run_heldout(options);
+    }
     // read_ply_mesh throws IoError naming the file for missing or corrupt input.
     const TriangleMesh ref = read_ply_mesh(options.ref_path);
     const TriangleMesh pred = read_ply_mesh(options.pred_path);
     // Below 0.1 m the protocol's other lengths follow the threshold (mesh_metrics.hpp).
     EvalConfig config = eval_config_for_threshold(options.config.threshold_m);
     config.seed = options.config.seed;
+    // The movers are read first: a bad simulation.json fails before the slow part.
+    const MoverTracks movers =
+        options.movers_path.empty() ? MoverTracks{} : read_mover_tracks(options.movers_path);
     const MeshMetrics metrics = evaluate_meshes(pred, ref, config);
+    if (options.movers_path.empty()) {
+        if (options.json) {
+            std::printf("%s\n", metrics_to_json(metrics).c_str());
+        } else {
+            std::printf("pred  %s\nref   %s\n%s", options.pred_path.c_str(),
+                        options.ref_path.c_str(), format_metrics(metrics).c_str());
+        }
+        return 0;
+    }
+    GhostConfig ghost_config;
+    ghost_config.eval = config;
+    const GhostMetrics ghost = measure_ghost_area(pred, ref, movers, ghost_config);
     if (options.json) {
-        std::printf("%s\n", metrics_to_json(metrics).c_str());
+        nlohmann::ordered_json json = nlohmann::ordered_json::parse(metrics_to_json(metrics));
+        json["ghost"] = nlohmann::ordered_json::parse(ghost_metrics_to_json(ghost));
+        std::printf("%s\n", json.dump().c_str());
     } else {
-        std::printf("pred  %s\nref   %s\n%s", options.pred_path.c_str(), options.ref_path.c_str(),
-                    format_metrics(metrics).c_str());
+        std::printf("pred   %s\nref    %s\nmovers %s\n%s%s", options.pred_path.c_str(),
+                    options.ref_path.c_str(), options.movers_path.c_str(),
+                    format_metrics(metrics).c_str(), format_ghost_metrics(ghost).c_str());
     }
     return 0;
 }
@@ -112,6 +141,10 @@ const RegisterCommand kEvalCommand(50, [](CLI::App& app, Action& action) {
     cmd->add_option("--max-range-m", options->heldout.max_range_m,
                     "with --heldout: rays measured farther are not scored")
         ->capture_default_str();
+    cmd->add_option("--movers", options->movers_path,
+                    "with --ref: simulation.json of `shine simulate --movers N`; also report the "
+                    "ghost area (predicted surface off the static reference and inside a volume "
+                    "a mover swept) and its share of the observed reference (docs/movers.md)");
     cmd->add_flag("--json", options->json, "print one JSON object (metres, ratios in [0, 1])");
     cmd->callback([options, &action] { action = [options] { return run_eval(*options); }; });
 });

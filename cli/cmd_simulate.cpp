@@ -131,6 +131,11 @@ int run_simulate(const SimulateOptions& options) {
             options.origin_offset_m[0], options.origin_offset_m[1], options.origin_offset_m[2]);
     }
     const auto thread_limit = limit_threads(options.threads);
+    if (c.movers.num_movers > 0 && (options.scene == "object" || options.route_requested)) {
+        throw ConfigError(
+            "--movers puts cars, cyclists and pedestrians on the street: it cannot "
+            "be combined with --scene object or --route-km");
+    }
     if (options.scene == "object") return run_object(options);
     if (options.max_edge_given && !(c.scene.max_edge_length_m >= 0.02)) {
         throw ConfigError("--max-edge-m = " + format_number(c.scene.max_edge_length_m) +
@@ -139,10 +144,14 @@ int run_simulate(const SimulateOptions& options) {
     }
     if (options.route_requested) return run_route(options, config);
     const sim::SimulationSummary summary = sim::simulate_sequence(config, options.out_dir);
+    const std::string movers =
+        c.movers.num_movers > 0
+            ? " with " + std::to_string(c.movers.num_movers) + " movers (simulation.json)"
+            : "";
     std::printf(
-        "wrote %s: %d scans (%zu points, %zu..%zu per scan), poses.txt, gt_mesh.ply "
+        "wrote %s: %d scans%s (%zu points, %zu..%zu per scan), poses.txt, gt_mesh.ply "
         "(%zu triangles, %zu observed), simulation.json, README.txt in %.1f s\n",
-        options.out_dir.c_str(), summary.num_frames, summary.total_points,
+        options.out_dir.c_str(), summary.num_frames, movers.c_str(), summary.total_points,
         summary.min_points_per_scan, summary.max_points_per_scan, summary.num_triangles,
         summary.num_observed_triangles, summary.seconds);
     return 0;
@@ -201,6 +210,14 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
                     "keeps small vertex coordinates and names the offset in its header")
         ->delimiter(',')
         ->expected(3);
+    cmd->add_option("--movers", c.movers.num_movers,
+                    "put N moving objects on the street: cars in the lanes (overtaking, "
+                    "oncoming, one parked then leaving), cyclists and pedestrians on the "
+                    "sidewalks; each ray sees them at its own time (scan k at k * 0.1 s, 0.1 s "
+                    "sweep); gt_mesh.ply stays static, simulation.json lists their paths "
+                    "(docs/movers.md)")
+        ->check(CLI::Range(0, 1000))
+        ->capture_default_str();
     cmd->add_option("--threads", options->threads, "worker threads (0 = all cores)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <sstream>
 #include <string>
+#include <type_traits>
 
 #include "sequence_files.hpp"
 #include "shine/core/atomic_file.hpp"
@@ -27,16 +28,30 @@ using random_internal::splitmix64;
 constexpr double kDegToRad = M_PI / 180.0;
 
 /// Independent random streams of a simulation (the scene uses the seed itself).
-enum Stream : std::uint64_t { kTrajectory = 0x100, kNoise = 0x200 };
+enum Stream : std::uint64_t { kTrajectory = 0x100, kNoise = 0x200, kMovers = 0x300 };
 
 using sequence_internal::format_frame;
 using sequence_internal::json_number;
 
-/// Casts the rays of one scan against `caster` (a RayCaster or a BlockSelection), in parallel; the
-/// range noise of ray i is drawn from a generator seeded by (noise_seed, i).
+/// Closest hit of one ray; only a MovingScene uses the ray's time.
+template <class Caster>
+RayHit cast_ray(const Caster& caster, const Eigen::Vector3d& origin_world,
+                const Eigen::Vector3d& direction_world, double max_range_m, double time_s) {
+    if constexpr (std::is_same_v<Caster, MovingScene>) {
+        return caster.cast(origin_world, direction_world, 0.0, max_range_m, time_s);
+    } else {
+        (void)time_s;
+        return caster.cast(origin_world, direction_world, 0.0, max_range_m);
+    }
+}
+
+/// Casts the rays of one scan against `caster` (a RayCaster, a BlockSelection or a MovingScene),
+/// in parallel; the range noise of ray i is drawn from a generator seeded by (noise_seed, i). The
+/// ray at azimuth step j is cast at time scan_time_s + sweep_s * j / azimuth_steps.
 template <class Caster>
 LidarScan cast_scan(const Caster& caster, const LidarConfig& config,
-                    const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed) {
+                    const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed,
+                    double scan_time_s = 0.0, double sweep_s = 0.0) {
     const std::size_t num_rays =
         static_cast<std::size_t>(config.num_beams) * static_cast<std::size_t>(config.azimuth_steps);
     std::vector<double> ranges(num_rays, -1.0);
@@ -51,8 +66,10 @@ LidarScan cast_scan(const Caster& caster, const LidarConfig& config,
                               const int step = static_cast<int>(ray % config.azimuth_steps);
                               const Eigen::Vector3d direction_world =
                                   R_world_sensor * lidar_ray_direction(config, beam, step);
-                              const RayHit hit = caster.cast(origin_world, direction_world, 0.0,
-                                                             config.max_range_m);
+                              const double time_s =
+                                  scan_time_s + sweep_s * step / config.azimuth_steps;
+                              const RayHit hit = cast_ray(caster, origin_world, direction_world,
+                                                          config.max_range_m, time_s);
                               if (!hit.hit() || hit.distance_m < config.min_range_m) continue;
                               double r = hit.distance_m;
                               if (sigma > 0.0) {
@@ -138,6 +155,14 @@ LidarScan simulate_scan(const BlockRayCaster& caster, const LidarConfig& config,
     return cast_scan(near, config, T_world_sensor, noise_seed);
 }
 
+LidarScan simulate_scan(const MovingScene& scene, const LidarConfig& config,
+                        const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed,
+                        double scan_time_s) {
+    validate(config);
+    return cast_scan(scene, config, T_world_sensor, noise_seed, scan_time_s,
+                     scene.tracks().sweep_s);
+}
+
 void validate(const SimulationConfig& config) {
     if (config.num_frames < 1 || config.num_frames > 100000) {
         throw ConfigError("simulation: num_frames = " + std::to_string(config.num_frames) +
@@ -153,6 +178,7 @@ void validate(const SimulationConfig& config) {
     }
     validate(config.trajectory);
     validate(config.lidar);
+    validate(config.movers);
     StreetSceneConfig scene = config.scene;
     scene.length_m = 100.0;  // set by simulate_sequence
     validate(scene);
@@ -182,12 +208,23 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
     SimulationSummary summary;
     summary.num_frames = config.num_frames;
     summary.num_triangles = scene.mesh.triangles.size();
-    sequence_internal::simulate_and_write_scans(
-        caster, config.lidar, poses,
-        [&](int frame) {
-            return derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame));
-        },
-        config.origin_offset_world_m, config.show_progress, out_dir, scene.mesh, summary);
+    const auto noise_seed = [&](int frame) {
+        return derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame));
+    };
+    MoverTracks movers;
+    if (config.movers.num_movers > 0) {
+        movers = make_street_movers(config.movers, scene_config, drive_length_m, config.num_frames,
+                                    derive_seed(config.seed, kMovers));
+        // Movers are placed in the simulation's frame, like the reference mesh's vertices.
+        const MovingScene moving(caster, movers);
+        sequence_internal::simulate_and_write_scans(
+            moving, config.lidar, poses, noise_seed, config.origin_offset_world_m,
+            config.show_progress, out_dir, scene.mesh, summary);
+    } else {
+        sequence_internal::simulate_and_write_scans(
+            caster, config.lidar, poses, noise_seed, config.origin_offset_world_m,
+            config.show_progress, out_dir, scene.mesh, summary);
+    }
     write_ply_mesh(out_dir / "gt_mesh.ply", scene.mesh);
 
     // Parameters, for people (README.txt) and programs (simulation.json).
@@ -205,7 +242,9 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
          << ", \"lot_depth_m\": " << json_number(s.lot_depth_m)
          << ", \"max_edge_length_m\": " << json_number(s.max_edge_length_m) << ",\n"
          << "            \"objects\": {";
-    sequence_internal::write_simulation_json_tail(json, scene, summary);
+    sequence_internal::write_simulation_json_tail(
+        json, scene, summary,
+        movers.movers.empty() ? "" : "  \"movers\": " + mover_tracks_to_json(movers) + ",\n");
     write_stream_atomically(out_dir / "simulation.json",
                             [&](std::ostream& out) { out << json.str(); });
     write_stream_atomically(out_dir / "README.txt", [&](std::ostream& out) {
@@ -220,6 +259,14 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
             << l.range_noise_sigma_m << " m,\nmounted " << t.sensor_height_m
             << " m above the road on a car driving " << config.num_frames << " frames, "
             << t.frame_spacing_m << " m apart.\n\n";
+        if (!movers.movers.empty()) {
+            out << "Movers: " << movers.movers.size()
+                << " cars, cyclists and pedestrians move along the street (simulation.json, "
+                   "\"movers\");\nscan k starts at k * "
+                << movers.frame_period_s << " s and its rays are spread over " << movers.sweep_s
+                << " s by azimuth.\ngt_mesh.ply holds the static scene only; points on movers "
+                   "are in the scans.\n\n";
+        }
         sequence_internal::write_readme_file_list(out, summary.num_observed_triangles);
     });
     summary.seconds =

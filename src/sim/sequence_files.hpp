@@ -11,6 +11,7 @@
 #include <regex>
 #include <string>
 #include <system_error>
+#include <type_traits>
 #include <vector>
 
 #include "shine/core/error.hpp"
@@ -62,9 +63,11 @@ inline void remove_stale_scans(const std::filesystem::path& velodyne_dir, int nu
 }
 
 /// The end of simulation.json that the street and the route share, after the caller's
-/// `"objects": {`: the scene's object counts, the results, the closing braces.
+/// `"objects": {`: the scene's object counts, `extra` (whole lines, e.g. the movers), the
+/// results, the closing braces.
 inline void write_simulation_json_tail(std::ostream& json, const StreetScene& scene,
-                                       const SimulationSummary& summary) {
+                                       const SimulationSummary& summary,
+                                       const std::string& extra = "") {
     const SceneObjectKind kinds[] = {SceneObjectKind::kBuilding, SceneObjectKind::kTree,
                                      SceneObjectKind::kCar, SceneObjectKind::kPole,
                                      SceneObjectKind::kPedestrian};
@@ -73,7 +76,7 @@ inline void write_simulation_json_tail(std::ostream& json, const StreetScene& sc
              << "s\": " << scene.count_objects(kinds[i]);
     }
     json << "}},\n"
-         << "  \"results\": {\"num_triangles\": " << summary.num_triangles
+         << extra << "  \"results\": {\"num_triangles\": " << summary.num_triangles
          << ", \"num_observed_triangles\": " << summary.num_observed_triangles
          << ", \"total_points\": " << summary.total_points
          << ", \"min_points_per_scan\": " << summary.min_points_per_scan
@@ -135,7 +138,8 @@ inline void write_readme_file_list(std::ostream& out, std::size_t num_observed_t
         << "simulation.json      all parameters and counts\n";
 }
 
-/// Simulates the scan at every pose with `caster` (RayCaster or BlockRayCaster), seeding each
+/// Simulates the scan at every pose with `caster` (RayCaster, BlockRayCaster or MovingScene, scan k
+/// at time k * frame_period_s), seeding each
 /// scan's noise with noise_seed(frame), and writes it to velodyne_dir/NNNNNN.bin as it is made;
 /// then writes out_dir/poses.txt (poses moved by origin_offset_world_m). Marks the triangles the
 /// scans hit in mesh.face_observed, sets mesh.origin_world_m and fills summary's point counts.
@@ -151,9 +155,18 @@ void simulate_and_write_scans(const Caster& caster, const LidarConfig& lidar,
     std::vector<std::uint8_t> observed(mesh.triangles.size(), 0);
     Progress progress("simulate", static_cast<std::size_t>(num_frames), show_progress);
     for (int frame = 0; frame < num_frames; ++frame) {
-        const LidarScan scan = simulate_scan(caster, lidar, poses[frame], noise_seed(frame));
+        LidarScan scan;
+        if constexpr (std::is_same_v<Caster, MovingScene>) {
+            scan = simulate_scan(caster, lidar, poses[frame], noise_seed(frame),
+                                 frame * caster.tracks().frame_period_s);
+        } else {
+            scan = simulate_scan(caster, lidar, poses[frame], noise_seed(frame));
+        }
         write_kitti_bin(velodyne_dir / format_frame(frame), scan.points_sensor);
-        for (const std::int32_t id : scan.triangle_ids) observed[id] = 1;
+        // Ids past the static mesh are movers (MovingScene::cast): not part of the reference.
+        for (const std::int32_t id : scan.triangle_ids) {
+            if (static_cast<std::size_t>(id) < observed.size()) observed[id] = 1;
+        }
         const std::size_t n = scan.points_sensor.size();
         summary.total_points += n;
         summary.min_points_per_scan = std::min(summary.min_points_per_scan, n);

@@ -12,6 +12,8 @@
 #include "shine/geometry/ray_caster.hpp"
 #include "shine/sim/block_ray_caster.hpp"
 #include "shine/sim/drive_trajectory.hpp"
+#include "shine/sim/moving_scene.hpp"
+#include "shine/sim/street_movers.hpp"
 #include "shine/sim/street_scene.hpp"
 
 namespace shine::sim {
@@ -42,7 +44,9 @@ Eigen::Vector3d lidar_ray_direction(const LidarConfig& config, int beam, int azi
 /// beam 0, then beam 1, ...), misses and out-of-range returns omitted.
 struct LidarScan {
     std::vector<Eigen::Vector3f> points_sensor;
-    std::vector<std::int32_t> triangle_ids;  ///< the triangle each point's ray hit
+    std::vector<std::int32_t> triangle_ids;  ///< the triangle each point's ray hit (with a
+                                             ///< MovingScene: >= num_static_triangles() for a
+                                             ///< mover, see MovingScene::cast)
 };
 
 /// Casts all rays of one scan from pose T_world_sensor, in parallel. The range noise of ray i is
@@ -56,6 +60,13 @@ LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
 LidarScan simulate_scan(const BlockRayCaster& caster, const LidarConfig& config,
                         const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed);
 
+/// Same against a static scene with movers: the ray at azimuth step j is cast at time
+/// scan_time_s + sweep_s * j / azimuth_steps (sweep_s from the scene's tracks), so each point sees
+/// the movers where they were when its ray was fired; the sensor pose stays T_world_sensor.
+LidarScan simulate_scan(const MovingScene& scene, const LidarConfig& config,
+                        const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed,
+                        double scan_time_s);
+
 /// Everything `shine simulate` does.
 struct SimulationConfig {
     std::uint64_t seed = 1;  ///< scene layout, trajectory phases and noise all derive from it
@@ -65,6 +76,7 @@ struct SimulationConfig {
     StreetSceneConfig scene;       ///< seed, start_x_m and length_m are set by simulate_sequence
     DriveTrajectoryConfig trajectory;
     LidarConfig lidar;
+    StreetMoversConfig movers;  ///< num_movers > 0: cars, cyclists, pedestrians on the street
     /// World position of the simulation's frame: added to every pose, and written as the
     /// reference mesh's origin_world_m (e.g. (500000, 5000000, 0) for UTM-like coordinates). The
     /// scans (sensor frame) do not change with it.
@@ -93,6 +105,10 @@ struct SimulationSummary {
 ///                                 triangle hit by at least one ray of any frame; vertices in the
 ///                                 simulation's frame, origin_world_m = origin_offset_world_m
 ///   out_dir/simulation.json, README.txt   the parameters
+/// With movers.num_movers > 0, the scans also see the movers (street_movers.hpp), scan k at time
+/// k * frame_period_s; gt_mesh.ply stays the static scene (observed = hit by a ray before any
+/// mover) and simulation.json gains "movers" (io/mover_tracks.hpp). Without movers the files are
+/// byte-identical to a simulation that knows nothing of them.
 /// Stale velodyne/NNNNNN.bin files beyond num_frames (from an earlier, longer run) are removed so
 /// that scans and poses stay consistent. Throws ConfigError for invalid configs and IoError when a
 /// file cannot be written.
