@@ -43,15 +43,6 @@ bool inside_slid_box(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, doubl
     return true;
 }
 
-/// The samples of `mesh` moved into the frame at `origin_world_m` (in double, as mesh_metrics).
-TriangleMesh in_frame(const TriangleMesh& mesh, const Eigen::Vector3d& origin_world_m) {
-    TriangleMesh moved = mesh;
-    const Eigen::Vector3d shift_m = mesh.origin_world_m - origin_world_m;
-    for (Eigen::Vector3f& v : moved.vertices) v = (v.cast<double>() + shift_m).cast<float>();
-    moved.origin_world_m = origin_world_m;
-    return moved;
-}
-
 }  // namespace ghost_area_internal
 
 using namespace ghost_area_internal;

@@ -57,17 +57,6 @@ double share_under(const std::vector<float>& distances_m, double threshold_m) {
     return static_cast<double>(under) / static_cast<double>(distances_m.size());
 }
 
-/// `mesh` with its vertices moved into the frame whose world position is `origin_world_m`. The
-/// shift between the frames is computed in double, so two meshes of a far-away (UTM) map that
-/// share or nearly share an origin keep their float precision.
-TriangleMesh in_frame(const TriangleMesh& mesh, const Eigen::Vector3d& origin_world_m) {
-    TriangleMesh moved = mesh;
-    const Eigen::Vector3d shift_m = mesh.origin_world_m - origin_world_m;
-    for (Eigen::Vector3f& v : moved.vertices) v = (v.cast<double>() + shift_m).cast<float>();
-    moved.origin_world_m = origin_world_m;
-    return moved;
-}
-
 }  // namespace mesh_metrics_internal
 
 EvalConfig eval_config_for_threshold(double threshold_m) {

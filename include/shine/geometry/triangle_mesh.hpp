@@ -25,4 +25,15 @@ struct TriangleMesh {
     bool empty() const { return triangles.empty(); }
 };
 
+/// `mesh` with its vertices moved into the frame whose world position is `origin_world_m`. The
+/// shift between the frames is computed in double, so two meshes of a far-away (UTM) map that
+/// share or nearly share an origin keep their float precision.
+inline TriangleMesh in_frame(const TriangleMesh& mesh, const Eigen::Vector3d& origin_world_m) {
+    TriangleMesh moved = mesh;
+    const Eigen::Vector3d shift_m = mesh.origin_world_m - origin_world_m;
+    for (Eigen::Vector3f& v : moved.vertices) v = (v.cast<double>() + shift_m).cast<float>();
+    moved.origin_world_m = origin_world_m;
+    return moved;
+}
+
 }  // namespace shine
