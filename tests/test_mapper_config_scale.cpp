@@ -58,6 +58,24 @@ TEST(MapperConfigScale, UnsetLengthsFollowTheLeafFromYaml) {
     EXPECT_EQ(c.bake.voxel_size_m, 0.0);  // 0 = half the leaf, already relative
 }
 
+TEST(MapperConfigScale, PoseEstimationLengthsFollowTheLeafAndRangesTheScene) {
+    const MapperConfig c = finalized("map:\n  leaf_size_m: 0.003\n");
+    const MapperConfig outdoor;
+    const double s = 0.003 / 0.2;
+    EXPECT_NEAR(c.odometry.voxel_size_m, outdoor.odometry.voxel_size_m * s, kFloatToleranceM);
+    EXPECT_NEAR(c.odometry.icp_max_correspondence_m, outdoor.odometry.icp_max_correspondence_m * s,
+                kFloatToleranceM);
+    EXPECT_NEAR(c.odometry.sdf_kernel_scale_m, outdoor.odometry.sdf_kernel_scale_m * s,
+                kFloatToleranceM);
+    EXPECT_EQ(c.odometry.min_range_m, 0.1);  // the object preset's
+    EXPECT_EQ(c.odometry.max_range_m, 3.0);
+    EXPECT_EQ(c.odometry.max_iterations, outdoor.odometry.max_iterations);  // not a length
+    const MapperConfig set = finalized(
+        "map:\n  leaf_size_m: 0.003\nodometry:\n  voxel_size_m: 0.5\n  min_range_m: 1.5\n");
+    EXPECT_EQ(set.odometry.voxel_size_m, 0.5);
+    EXPECT_EQ(set.odometry.min_range_m, 1.5);
+}
+
 TEST(MapperConfigScale, OutdoorTenCentimetreLeavesKeepTheRanges) {
     const MapperConfig c = finalized("map:\n  leaf_size_m: 0.1\n");
     EXPECT_EQ(c.resolved_scene(), ScenePreset::kOutdoor);

@@ -315,6 +315,23 @@ void apply_scale_free_defaults(MapperConfig& c) {
     follow_leaf(c.trainer.sigma_m, outdoor.trainer.sigma_m, "training.sigma_m");
     follow_leaf(c.incremental.surface_band_m, outdoor.incremental.surface_band_m,
                 "incremental.surface_band_m");
+    // Pose estimation: its range crop is the scene's, its lengths follow the leaf.
+    from_scene(c.odometry.min_range_m, outdoor.odometry.min_range_m, scene.min_range_m,
+               "odometry.min_range_m");
+    from_scene(c.odometry.max_range_m, outdoor.odometry.max_range_m, scene.max_range_m,
+               "odometry.max_range_m");
+    follow_leaf(c.odometry.voxel_size_m, outdoor.odometry.voxel_size_m, "odometry.voxel_size_m");
+    follow_leaf(c.odometry.icp_max_correspondence_m, outdoor.odometry.icp_max_correspondence_m,
+                "odometry.icp_max_correspondence_m");
+    follow_leaf(c.odometry.icp_coarse_correspondence_m,
+                outdoor.odometry.icp_coarse_correspondence_m,
+                "odometry.icp_coarse_correspondence_m");
+    follow_leaf(c.odometry.icp_kernel_scale_m, outdoor.odometry.icp_kernel_scale_m,
+                "odometry.icp_kernel_scale_m");
+    follow_leaf(c.odometry.sdf_kernel_scale_m, outdoor.odometry.sdf_kernel_scale_m,
+                "odometry.sdf_kernel_scale_m");
+    follow_leaf(c.odometry.sdf_coarse_kernel_scale_m, outdoor.odometry.sdf_coarse_kernel_scale_m,
+                "odometry.sdf_coarse_kernel_scale_m");
 }
 
 }  // namespace
