@@ -12,6 +12,7 @@
 
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/core/median.hpp"
 
 namespace shine::cli {
 namespace {
@@ -27,13 +28,6 @@ std::string quoted(const std::string& s) {
         }
     }
     return out + "'";
-}
-
-double median(std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    const std::size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 std::string ms(double seconds) {

@@ -3,15 +3,9 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "shine/core/median.hpp"
+
 namespace shine {
-namespace {
-double median(std::vector<double> values) {
-    if (values.empty()) return 0.0;
-    std::sort(values.begin(), values.end());
-    const std::size_t n = values.size();
-    return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
-}
-}  // namespace
 
 const char* stage_name(Stage stage) {
     static constexpr const char* kNames[kNumStages] = {"load",       "preprocess", "allocate",
