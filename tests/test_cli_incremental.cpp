@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "cli_test_support.hpp"
+#include "shine/model/map_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace shine::cli_test;
@@ -90,6 +91,40 @@ TEST(IncrementalCli, PretrainWritesADecoderThatIncrementalModeLoads) {
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_EQ(read_json(out / "stats.json").at("incremental").at("decoder_weights"),
               decoder.string());
+}
+
+TEST(IncrementalCli, LoadsTheDecoderOfABatchMap) {
+    // A batch run trains its decoder with its features; incremental mode can start from it.
+    const fs::path batch = test_dir() / "batch";
+    fs::remove_all(batch);
+    const CliResult b = run("map " + street().string() + " -o " + batch.string() +
+                            " --iterations 30 --last-frame 1 --no-eval --threads 2 -q");
+    ASSERT_EQ(b.exit_code, 0) << b.output;
+    const fs::path config = test_dir() / "map_decoder.yaml";
+    std::ofstream(config) << "incremental:\n  decoder_weights: " << (batch / "map.vdb").string()
+                          << "\n  iterations_per_frame: 5\n";
+    const fs::path out = test_dir() / "out";
+    fs::remove_all(out);
+    const CliResult r =
+        run("map " + street().string() + " -o " + out.string() +
+            " --mode incremental --last-frame 1 --no-eval --threads 2 -q -c " + config.string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    // The decoder stays frozen in incremental mode: the new map's decoder is the batch map's.
+    const shine::LoadedMap from = shine::load_neural_map(batch / "map.vdb");
+    const shine::LoadedMap made = shine::load_neural_map(out / "map.vdb");
+    EXPECT_EQ(made.sdf.decoder.params(), from.sdf.decoder.params());
+
+    // A .vdb that is not a ShineVDB map: a clear error naming it, and no map.
+    const fs::path not_a_map = test_dir() / "surface_as_decoder.yaml";
+    std::ofstream(not_a_map) << "incremental:\n  decoder_weights: "
+                             << (batch / "surface.vdb").string() << "\n";
+    fs::remove_all(out);
+    const CliResult bad =
+        run("map " + street().string() + " -o " + out.string() +
+            " --mode incremental --last-frame 1 --no-eval -q -c " + not_a_map.string());
+    EXPECT_NE(bad.exit_code, 0);
+    EXPECT_NE(bad.output.find("surface.vdb"), std::string::npos) << bad.output;
+    EXPECT_FALSE(fs::exists(out / "map.vdb"));
 }
 
 TEST(IncrementalCli, ForgettingExperimentWritesReportAndPicture) {

@@ -17,6 +17,7 @@
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/model/decoder_file.hpp"
+#include "shine/model/map_file.hpp"
 #include "shine/sampling/ray_set.hpp"
 #include "shine/sampling/surface_normals.hpp"
 
@@ -49,6 +50,9 @@ Decoder load_incremental_decoder(const MapperConfig& config_in) {
                 "incremental.decoder_weights to a decoder file");
         }
         decoder = decoder_from_yaml(text, "the built-in pretrained decoder");
+    } else if (std::filesystem::path(source).extension() == ".vdb") {
+        // The decoder a batch run trained together with its features (a map.vdb).
+        decoder = load_neural_map(source).sdf.decoder;
     } else {
         decoder = load_decoder(source);
     }

@@ -25,8 +25,9 @@ struct IncrementalConfig {
     float learning_rate = 0.02f;
     ImportanceConfig importance;  ///< lambda_r (0 = no regulariser) and Omega_m
     /// The frozen decoder: "builtin" (models/decoder_pretrained.yaml, compiled in), a path to a
-    /// file written by `shine pretrain`, or "none" (start from the random decoder and train it
-    /// online, as training.train_decoder says).
+    /// file written by `shine pretrain`, a map.vdb (the decoder a batch run trained with its
+    /// features, e.g. on an earlier recording of the same sensor), or "none" (start from the
+    /// random decoder and train it online, as training.train_decoder says).
     std::string decoder_weights = "builtin";
     int mesh_every = 0;  ///< bake and mesh every K frames while mapping (0: only at the end)
     /// Half-width of the surface band in incremental mode (replaces sampling.surface_band_m):
