@@ -39,7 +39,8 @@ struct BenchOptions {
     bool half_features = false;
     bool no_eval = false;
     bool quiet = false;
-    bool speed = false;  ///< the speed study instead (bench_speed.hpp)
+    int holdout_every = 0;  ///< > 0: every N-th scan is not mapped but scores both meshes
+    bool speed = false;     ///< the speed study instead (bench_speed.hpp)
     int rounds = 3;
 };
 
@@ -80,7 +81,12 @@ int run_bench_speed(const BenchOptions& opt) {
 }
 
 int run_bench(const BenchOptions& opt) {
-    if (opt.speed) return run_bench_speed(opt);
+    if (opt.speed) {
+        if (opt.holdout_every > 0) {
+            throw ConfigError("--holdout-every belongs to the accuracy study, not to --speed");
+        }
+        return run_bench_speed(opt);
+    }
     const auto start_total = std::chrono::steady_clock::now();
     Progress::set_globally_enabled(!opt.quiet);
 
@@ -108,6 +114,12 @@ int run_bench(const BenchOptions& opt) {
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
     ScanSequence sequence = ScanSequence::open(data, seq_options);
+    if (opt.holdout_every > 0) {
+        config.heldout_frames = split_holdout(sequence, opt.holdout_every).heldout;
+        // Scored on real scans against TSDF fusion as VDBFusion runs it: every point fused.
+        config.tsdf.preprocess.voxel_downsample_m = 0.0;
+        tsdf_config_at(config, config.sizes_m.front());  // still valid
+    }
     const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
     std::unique_ptr<TriangleMesh> reference;
     if (!ref.empty()) reference = std::make_unique<TriangleMesh>(read_ply_mesh(ref));
@@ -136,6 +148,8 @@ int run_bench(const BenchOptions& opt) {
     info.iterations = config.shine.iterations;
     info.half_features = config.shine.octree.feature_precision == FeaturePrecision::kFloat16;
     info.trunc_voxels = config.trunc_voxels;
+    info.holdout_every = opt.holdout_every;
+    info.heldout_threshold_m = config.heldout.threshold_m;
     write_stream_atomically(out / "bench.csv", [&](std::ostream& os) { os << rows_to_csv(rows); });
     write_stream_atomically(out / "bench.json",
                             [&](std::ostream& os) { os << bench_to_json(rows, info); });
@@ -152,6 +166,13 @@ int run_bench(const BenchOptions& opt) {
     std::printf("%s\n", format_rows_table(rows).c_str());
     std::printf("ShineVDB / TSDF per size (S = ShineVDB, T = TSDF):\n%s\n",
                 format_ratios_table(compute_ratios(rows)).c_str());
+    if (opt.holdout_every > 0) {
+        std::printf(
+            "held-out scans (%zu, 1 in %d, not mapped; their rays cast into each mesh; within "
+            "%g cm; a miss is a failure; the TSDF fuses every point):\n%s\n",
+            config.heldout_frames.size(), opt.holdout_every, config.heldout.threshold_m * 100,
+            format_heldout_table(rows).c_str());
+    }
     if (reference) {
         std::printf("checks (against %s):\n%s\n", ref.c_str(),
                     format_checks(compute_checks(rows)).c_str());
@@ -196,6 +217,7 @@ const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
                                opt->poses_path);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
+    add_holdout_option(cmd, opt->holdout_every);
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
     cmd->add_flag("--speed", opt->speed,
                   "Speed study instead: the TSDF baseline at 0.1 m (VDBFusion settings), ShineVDB "

@@ -65,6 +65,26 @@ void expect_same_rows(const std::vector<BenchRow>& a, const std::vector<BenchRow
         EXPECT_EQ(a[i].metrics->precision, b[i].metrics->precision) << i;
         EXPECT_EQ(a[i].metrics->fscore, b[i].metrics->fscore) << i;
     }
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        ASSERT_EQ(a[i].heldout.has_value(), b[i].heldout.has_value()) << i;
+        if (!a[i].heldout) continue;
+        EXPECT_EQ(a[i].heldout->rays, b[i].heldout->rays) << i;
+        EXPECT_EQ(a[i].heldout->hit_ratio, b[i].heldout->hit_ratio) << i;
+        EXPECT_EQ(a[i].heldout->within_ratio, b[i].heldout->within_ratio) << i;
+        EXPECT_EQ(a[i].heldout->median_abs_error_m, b[i].heldout->median_abs_error_m) << i;
+        EXPECT_EQ(a[i].heldout->mean_abs_error_m, b[i].heldout->mean_abs_error_m) << i;
+    }
+}
+
+/// Held-out figures as a real walk gives them (0.2 m, every 3rd scan): ShineVDB hits more rays,
+/// more of them within 10 cm, with a smaller median error.
+void add_heldout(std::vector<BenchRow>& rows) {
+    for (BenchRow& r : rows) {
+        if (r.size_m != 0.2) continue;
+        const bool shine = r.method == BenchMethod::kShineVdb;
+        r.heldout = BenchHeldout{1'290'001, shine ? 0.9971 : 0.9878, shine ? 0.8911 : 0.8642,
+                                 shine ? 0.0255 : 0.0266, shine ? 0.0709 : 0.0812};
+    }
 }
 
 }  // namespace
@@ -83,36 +103,57 @@ TEST(BenchRow, NamesAndSizes) {
 TEST(BenchReport, CsvRoundTripIsExact) {
     std::vector<BenchRow> rows = study();
     rows[3].metrics.reset();  // a row without evaluation
+    add_heldout(rows);
     const std::string csv = rows_to_csv(rows);
     EXPECT_EQ(
         csv.substr(0, csv.find('\n')),
         "method,size_m,frames,iterations,map_bytes,file_bytes,seconds,seconds_per_frame,accuracy_m,"
-        "completion_m,chamfer_l1_m,completion_ratio,precision,fscore");
+        "completion_m,chamfer_l1_m,completion_ratio,precision,fscore,heldout_rays,"
+        "heldout_hit_ratio,heldout_within_ratio,heldout_median_abs_error_m,"
+        "heldout_mean_abs_error_m");
     EXPECT_NE(csv.find("\ntsdf,0.2,50,0,19720000,6573333,"), std::string::npos) << csv;
-    EXPECT_NE(csv.find(",,,,,,\n"), std::string::npos) << csv;
+    EXPECT_NE(csv.find(",,,,,,,1290001,0.9878,0.8642,0.0266,0.0812\n"), std::string::npos) << csv;
+    EXPECT_NE(csv.find(",,,,,\n"), std::string::npos) << csv;
     expect_same_rows(rows_from_csv(csv), rows);
+}
+
+TEST(BenchReport, CsvWithoutHeldoutColumnsStillReads) {
+    const std::vector<BenchRow> rows = rows_from_csv(
+        "method,size_m,frames,iterations,map_bytes,file_bytes,seconds,seconds_per_frame,"
+        "accuracy_m,completion_m,chamfer_l1_m,completion_ratio,precision,fscore\n"
+        "tsdf,0.2,50,0,1,1,1,1,0.1,0.1,0.1,0.8,0.9,0.85\n");
+    ASSERT_EQ(rows.size(), 1u);
+    ASSERT_TRUE(rows[0].metrics);
+    EXPECT_EQ(rows[0].metrics->fscore, 0.85);
+    EXPECT_FALSE(rows[0].heldout);
 }
 
 TEST(BenchReport, CsvErrorsNameTheLine) {
     const std::string header = rows_to_csv({});
     EXPECT_THROW(rows_from_csv("method,size\n"), DataError);
     try {
-        rows_from_csv(header + "tsdf,0.2,50,0,1,1,1,1,,,,,,\ntsdf,abc,50,0,1,1,1,1,,,,,,\n",
-                      "b.csv");
+        rows_from_csv(
+            header + "tsdf,0.2,50,0,1,1,1,1,,,,,,,,,,,\ntsdf,abc,50,0,1,1,1,1,,,,,,,,,,,\n",
+            "b.csv");
         FAIL();
     } catch (const DataError& e) {
         EXPECT_NE(std::string(e.what()).find("b.csv, line 3"), std::string::npos) << e.what();
         EXPECT_NE(std::string(e.what()).find("abc"), std::string::npos) << e.what();
     }
     EXPECT_THROW(rows_from_csv(header + "tsdf,0.2,50\n"), DataError);
-    EXPECT_THROW(rows_from_csv(header + "octomap,0.2,50,0,1,1,1,1,,,,,,\n"), DataError);
-    EXPECT_THROW(rows_from_csv(header + "tsdf,0.2,50,0,1,1,1,1,0.1,,,,,\n"), DataError)
+    EXPECT_THROW(rows_from_csv(header + "octomap,0.2,50,0,1,1,1,1,,,,,,,,,,,\n"), DataError);
+    EXPECT_THROW(rows_from_csv(header + "tsdf,0.2,50,0,1,1,1,1,0.1,,,,,,,,,,\n"), DataError)
         << "metrics must be all present or all empty";
+    EXPECT_THROW(rows_from_csv(header + "tsdf,0.2,50,0,1,1,1,1,,,,,,,10,0.5,,,\n"), DataError)
+        << "held-out figures must be all present or all empty";
+    EXPECT_THROW(rows_from_csv(header + "tsdf,0.2,50,0,1,1,1,1,,,,,,\n"), DataError)
+        << "a row of the old width under the new header";
 }
 
 TEST(BenchReport, JsonRoundTripAndContents) {
     std::vector<BenchRow> rows = study();
     rows[0].metrics.reset();
+    add_heldout(rows);
     BenchInfo info;
     info.data = "street";
     info.reference = "street/gt_mesh.ply";
@@ -129,8 +170,34 @@ TEST(BenchReport, JsonRoundTripAndContents) {
     EXPECT_TRUE(b.at("pass").get<bool>());
     EXPECT_EQ(b.at("best_tsdf").at("size_m").get<double>(), 0.2);
     EXPECT_EQ(b.at("smallest_good_shinevdb").at("size_m").get<double>(), 0.5);
+    EXPECT_TRUE(j.at("rows").at(0).at("heldout").is_null());
+    EXPECT_EQ(j.at("rows").at(2).at("heldout").at("rays").get<std::size_t>(), 1'290'001u);
     EXPECT_THROW(rows_from_json("{\"rows\": [{\"method\": \"tsdf\"}]}"), DataError);
     EXPECT_THROW(rows_from_json("not json"), DataError);
+}
+
+TEST(BenchReport, HeldoutRatiosAndTables) {
+    std::vector<BenchRow> rows = study();
+    add_heldout(rows);
+    const std::vector<BenchRatio> ratios = compute_ratios(rows);
+    ASSERT_EQ(ratios.size(), 4u);
+    EXPECT_FALSE(ratios[0].heldout_within_difference) << "0.1 m held nothing out";
+    ASSERT_TRUE(ratios[1].heldout_within_difference);
+    EXPECT_NEAR(*ratios[1].heldout_within_difference, 0.8911 - 0.8642, 1e-12);
+    EXPECT_NEAR(*ratios[1].heldout_hit_difference, 0.9971 - 0.9878, 1e-12);
+    EXPECT_NEAR(*ratios[1].heldout_median_ratio, 0.0255 / 0.0266, 1e-12);
+
+    const std::string table = format_heldout_table(rows);
+    EXPECT_NE(table.find("89.11"), std::string::npos) << table;
+    EXPECT_NE(table.find("+2.69"), std::string::npos) << table;  // within, ShineVDB - TSDF
+    EXPECT_NE(table.find("-0.11"), std::string::npos) << table;  // median, cm
+    EXPECT_EQ(format_heldout_table(study()), "") << "no held-out figures, no table";
+
+    BenchInfo info;
+    info.holdout_every = 3;
+    const std::string md = bench_to_markdown(rows, info);
+    EXPECT_NE(md.find("1 scan in 3 not mapped"), std::string::npos) << md;
+    EXPECT_NE(md.find("| 0.2 m | +2.69 points | +0.93 points | 0.959 |"), std::string::npos) << md;
 }
 
 TEST(BenchChecks, SmallestShineAtLeastAsGoodAsBestTsdf) {

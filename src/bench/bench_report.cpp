@@ -15,10 +15,16 @@ namespace {
 
 using json = nlohmann::json;
 
-constexpr const char* kCsvHeader =
+/// The header of files written before the held-out columns; they are still read.
+constexpr const char* kCsvHeaderWithoutHeldout =
     "method,size_m,frames,iterations,map_bytes,file_bytes,seconds,seconds_per_frame,accuracy_m,"
     "completion_m,chamfer_l1_m,completion_ratio,precision,fscore";
-constexpr std::size_t kCsvFields = 14;
+constexpr const char* kCsvHeader =
+    "method,size_m,frames,iterations,map_bytes,file_bytes,seconds,seconds_per_frame,accuracy_m,"
+    "completion_m,chamfer_l1_m,completion_ratio,precision,fscore,heldout_rays,heldout_hit_ratio,"
+    "heldout_within_ratio,heldout_median_abs_error_m,heldout_mean_abs_error_m";
+constexpr std::size_t kCsvMetricFields = 14;
+constexpr std::size_t kCsvFields = 19;
 /// Check (c) looks at these resolutions.
 constexpr double kCompletionSizesM[] = {0.1, 0.2};
 /// Resolutions are the same when they differ by less than this (they come from one parsed list).
@@ -72,6 +78,15 @@ json metrics_json(const std::optional<BenchMetrics>& m) {
             {"precision", m->precision},       {"fscore", m->fscore}};
 }
 
+json heldout_json(const std::optional<BenchHeldout>& h) {
+    if (!h) return nullptr;
+    return {{"rays", h->rays},
+            {"hit_ratio", h->hit_ratio},
+            {"within_ratio", h->within_ratio},
+            {"median_abs_error_m", h->median_abs_error_m},
+            {"mean_abs_error_m", h->mean_abs_error_m}};
+}
+
 json row_json(const BenchRow& row) {
     return {{"method", method_name(row.method)},
             {"size_m", row.size_m},
@@ -81,7 +96,8 @@ json row_json(const BenchRow& row) {
             {"file_bytes", row.file_bytes},
             {"seconds", row.seconds},
             {"seconds_per_frame", row.seconds_per_frame},
-            {"eval", metrics_json(row.metrics)}};
+            {"eval", metrics_json(row.metrics)},
+            {"heldout", heldout_json(row.heldout)}};
 }
 
 json brief_row_json(const std::optional<BenchRow>& row) {
@@ -127,6 +143,15 @@ std::vector<BenchRatio> compute_ratios(const std::vector<BenchRow>& rows) {
             const BenchMetrics& t = *pair.tsdf->metrics;
             if (t.chamfer_l1_m > 0.0) ratio.chamfer_ratio = s.chamfer_l1_m / t.chamfer_l1_m;
             ratio.fscore_difference = s.fscore - t.fscore;
+        }
+        if (pair.shine->heldout && pair.tsdf->heldout) {
+            const BenchHeldout& s = *pair.shine->heldout;
+            const BenchHeldout& t = *pair.tsdf->heldout;
+            ratio.heldout_within_difference = s.within_ratio - t.within_ratio;
+            ratio.heldout_hit_difference = s.hit_ratio - t.hit_ratio;
+            if (t.median_abs_error_m > 0.0) {
+                ratio.heldout_median_ratio = s.median_abs_error_m / t.median_abs_error_m;
+            }
         }
         ratios.push_back(ratio);
     }
@@ -206,6 +231,16 @@ std::string rows_to_csv(const std::vector<BenchRow>& rows) {
         } else {
             out << ",,,,,,";
         }
+        if (row.heldout) {
+            const BenchHeldout& h = *row.heldout;
+            out << ',' << h.rays;
+            for (const double v :
+                 {h.hit_ratio, h.within_ratio, h.median_abs_error_m, h.mean_abs_error_m}) {
+                out << ',' << shortest(v);
+            }
+        } else {
+            out << ",,,,,";
+        }
         out << "\n";
     }
     return out.str();
@@ -214,10 +249,11 @@ std::string rows_to_csv(const std::vector<BenchRow>& rows) {
 std::vector<BenchRow> rows_from_csv(const std::string& text, const std::string& source) {
     std::istringstream in(text);
     std::string line;
-    if (!std::getline(in, line) || line != kCsvHeader) {
+    if (!std::getline(in, line) || (line != kCsvHeader && line != kCsvHeaderWithoutHeldout)) {
         throw DataError(source + ": the first line is not the bench CSV header '" +
                         std::string(kCsvHeader) + "'");
     }
+    const std::size_t num_fields = line == kCsvHeader ? kCsvFields : kCsvMetricFields;
     std::vector<BenchRow> rows;
     int line_number = 1;
     while (std::getline(in, line)) {
@@ -225,9 +261,9 @@ std::vector<BenchRow> rows_from_csv(const std::string& text, const std::string& 
         if (line.empty()) continue;
         const std::string where = source + ", line " + std::to_string(line_number);
         const std::vector<std::string> f = split(line, ',');
-        if (f.size() != kCsvFields) {
+        if (f.size() != num_fields) {
             throw DataError(where + ": " + std::to_string(f.size()) + " fields, expected " +
-                            std::to_string(kCsvFields));
+                            std::to_string(num_fields));
         }
         BenchRow row;
         try {
@@ -243,8 +279,11 @@ std::vector<BenchRow> rows_from_csv(const std::string& text, const std::string& 
         row.seconds = parse_number<double>(f[6], "seconds", where);
         row.seconds_per_frame = parse_number<double>(f[7], "seconds_per_frame", where);
         constexpr std::size_t kFirstMetric = 8;
-        const bool any_metric = std::any_of(f.begin() + kFirstMetric, f.end(),
-                                            [](const std::string& s) { return !s.empty(); });
+        const auto any_set = [&f](std::size_t first, std::size_t last) {
+            return std::any_of(f.begin() + first, f.begin() + last,
+                               [](const std::string& s) { return !s.empty(); });
+        };
+        const bool any_metric = any_set(kFirstMetric, kCsvMetricFields);
         if (any_metric) {
             BenchMetrics m;
             m.accuracy_m = parse_number<double>(f[8], "accuracy_m", where);
@@ -254,6 +293,15 @@ std::vector<BenchRow> rows_from_csv(const std::string& text, const std::string& 
             m.precision = parse_number<double>(f[12], "precision", where);
             m.fscore = parse_number<double>(f[13], "fscore", where);
             row.metrics = m;
+        }
+        if (num_fields == kCsvFields && any_set(kCsvMetricFields, kCsvFields)) {
+            BenchHeldout h;
+            h.rays = parse_number<std::size_t>(f[14], "heldout_rays", where);
+            h.hit_ratio = parse_number<double>(f[15], "heldout_hit_ratio", where);
+            h.within_ratio = parse_number<double>(f[16], "heldout_within_ratio", where);
+            h.median_abs_error_m = parse_number<double>(f[17], "heldout_median_abs_error_m", where);
+            h.mean_abs_error_m = parse_number<double>(f[18], "heldout_mean_abs_error_m", where);
+            row.heldout = h;
         }
         rows.push_back(row);
     }
@@ -269,6 +317,7 @@ std::string bench_to_json(const std::vector<BenchRow>& rows, const BenchInfo& in
     root["iterations"] = info.iterations >= 0 ? json(info.iterations) : json("auto");
     root["half_features"] = info.half_features;
     root["tsdf_trunc_voxels"] = info.trunc_voxels;
+    root["holdout_every"] = info.holdout_every > 0 ? json(info.holdout_every) : json(nullptr);
     root["units"] = "map_bytes, file_bytes: bytes; seconds; *_m: metres; ratios in [0, 1]";
     root["rows"] = json::array();
     for (const BenchRow& row : rows) root["rows"].push_back(row_json(row));
@@ -280,7 +329,13 @@ std::string bench_to_json(const std::vector<BenchRow>& rows, const BenchInfo& in
              {"memory_ratio", r.memory_ratio},
              {"chamfer_ratio", r.chamfer_ratio ? json(*r.chamfer_ratio) : json(nullptr)},
              {"fscore_difference",
-              r.fscore_difference ? json(*r.fscore_difference) : json(nullptr)}});
+              r.fscore_difference ? json(*r.fscore_difference) : json(nullptr)},
+             {"heldout_within_difference",
+              r.heldout_within_difference ? json(*r.heldout_within_difference) : json(nullptr)},
+             {"heldout_hit_difference",
+              r.heldout_hit_difference ? json(*r.heldout_hit_difference) : json(nullptr)},
+             {"heldout_median_ratio",
+              r.heldout_median_ratio ? json(*r.heldout_median_ratio) : json(nullptr)}});
     }
 
     const BenchChecks c = compute_checks(rows);
@@ -332,6 +387,16 @@ std::vector<BenchRow> rows_from_json(const std::string& text, const std::string&
                 m.precision = e.at("precision").get<double>();
                 m.fscore = e.at("fscore").get<double>();
                 row.metrics = m;
+            }
+            const auto h = r.find("heldout");  // absent in files from before held-out scans
+            if (h != r.end() && !h->is_null()) {
+                BenchHeldout held;
+                held.rays = h->at("rays").get<std::size_t>();
+                held.hit_ratio = h->at("hit_ratio").get<double>();
+                held.within_ratio = h->at("within_ratio").get<double>();
+                held.median_abs_error_m = h->at("median_abs_error_m").get<double>();
+                held.mean_abs_error_m = h->at("mean_abs_error_m").get<double>();
+                row.heldout = held;
             }
             rows.push_back(row);
         }
@@ -390,6 +455,45 @@ std::string format_ratios_table(const std::vector<BenchRatio>& ratios) {
                       (format_size_m(r.size_m) + " m").c_str(), r.memory_ratio, chamfer.c_str(),
                       fscore.c_str());
         out += line;
+    }
+    return out;
+}
+
+std::string format_heldout_table(const std::vector<BenchRow>& rows) {
+    std::string out;
+    char line[200];
+    const std::vector<SizePair> pairs = pair_by_size(rows);
+    for (const SizePair& pair : pairs) {
+        for (const BenchRow* row : {pair.tsdf, pair.shine}) {
+            if (!row || !row->heldout) continue;
+            if (out.empty()) {
+                std::snprintf(line, sizeof(line), "%-9s %6s %10s %9s %9s %10s %9s %10s\n", "method",
+                              "size", "rays", "hit %", "within %", "median cm", "mean cm",
+                              "map MB");
+                out += line;
+            }
+            const BenchHeldout& h = *row->heldout;
+            std::snprintf(line, sizeof(line), "%-9s %6s %10zu %9.2f %9.2f %10.2f %9.2f %10.2f\n",
+                          method_label(row->method).c_str(),
+                          (format_size_m(row->size_m) + " m").c_str(), h.rays, h.hit_ratio * 100,
+                          h.within_ratio * 100, h.median_abs_error_m * 100,
+                          h.mean_abs_error_m * 100, row->map_bytes / 1e6);
+            out += line;
+        }
+        if (pair.shine && pair.tsdf && pair.shine->heldout && pair.tsdf->heldout) {
+            const BenchHeldout& s = *pair.shine->heldout;
+            const BenchHeldout& t = *pair.tsdf->heldout;
+            std::snprintf(line, sizeof(line), "%-9s %6s %10s %+9.2f %+9.2f %+10.2f %+9.2f %10s\n",
+                          "S - T", (format_size_m(pair.size_m) + " m").c_str(), "",
+                          (s.hit_ratio - t.hit_ratio) * 100,
+                          (s.within_ratio - t.within_ratio) * 100,
+                          (s.median_abs_error_m - t.median_abs_error_m) * 100,
+                          (s.mean_abs_error_m - t.mean_abs_error_m) * 100,
+                          format("x%.3f", static_cast<double>(pair.shine->map_bytes) /
+                                              std::max<std::size_t>(pair.tsdf->map_bytes, 1))
+                              .c_str());
+            out += line;
+        }
     }
     return out;
 }
@@ -476,6 +580,38 @@ std::string bench_to_markdown(const std::vector<BenchRow>& rows, const BenchInfo
                (r.chamfer_ratio ? format("%.3f", *r.chamfer_ratio) : "-") + " | " +
                (r.fscore_difference ? format("%+.1f points", *r.fscore_difference * 100) : "-") +
                " |\n";
+    }
+    const bool any_heldout = std::any_of(rows.begin(), rows.end(),
+                                         [](const BenchRow& r) { return r.heldout.has_value(); });
+    if (any_heldout) {
+        out += "\nHeld-out scans (1 scan in " + std::to_string(info.holdout_every) +
+               " not mapped; their rays cast into each mesh; within " +
+               format("%g", info.heldout_threshold_m * 100) +
+               " cm, a miss counts as a failure):\n\n";
+        out +=
+            "| method | size | rays | rays that hit | rays within | median error | mean error | "
+            "map |\n";
+        out += "| --- | --- | --- | --- | --- | --- | --- | --- |\n";
+        for (const BenchRow* row : sorted) {
+            if (!row->heldout) continue;
+            const BenchHeldout& h = *row->heldout;
+            out += "| " + method_label(row->method) + " | " + format_size_m(row->size_m) + " m | " +
+                   std::to_string(h.rays) + " | " + format("%.2f %%", h.hit_ratio * 100) + " | " +
+                   format("%.2f %%", h.within_ratio * 100) + " | " +
+                   centimetres(h.median_abs_error_m) + " | " + centimetres(h.mean_abs_error_m) +
+                   " | " + megabytes(row->map_bytes) + " |\n";
+        }
+        out +=
+            "\n| size | within: ShineVDB - TSDF | hit: ShineVDB - TSDF | median ShineVDB / TSDF "
+            "|\n| --- | --- | --- | --- |\n";
+        for (const BenchRatio& r : compute_ratios(rows)) {
+            if (!r.heldout_within_difference) continue;
+            out += "| " + format_size_m(r.size_m) + " m | " +
+                   format("%+.2f points", *r.heldout_within_difference * 100) + " | " +
+                   format("%+.2f points", *r.heldout_hit_difference * 100) + " | " +
+                   (r.heldout_median_ratio ? format("%.3f", *r.heldout_median_ratio) : "-") +
+                   " |\n";
+        }
     }
     out += "\nChecks:\n\n```\n" + format_checks(compute_checks(rows)) + "```\n";
     out += "\nData `" + info.data + "`, reference `" +

@@ -88,6 +88,11 @@ fs::path bench_run_dir(const fs::path& out_dir, BenchMethod method, double size_
     return out_dir / (method_name(method) + "_" + format_size_m(size_m));
 }
 
+BenchHeldout to_bench_heldout(const RangeErrorStats& stats) {
+    return {stats.rays, stats.hit_ratio(), stats.within_ratio(), stats.median_abs_error_m,
+            stats.mean_abs_error_m};
+}
+
 BenchMetrics to_bench_metrics(const MeshMetrics& m) {
     return {m.accuracy_m,       m.completion_m, m.chamfer_l1_m,
             m.completion_ratio, m.precision,    m.fscore};
@@ -131,6 +136,15 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
     tsdf_row.method = BenchMethod::kTsdf;
     tsdf_row.size_m = size_m;
 
+    HeldoutConfig heldout_config = config.heldout;
+    heldout_config.min_range_m = shine_config.preprocess.min_range_m;
+    heldout_config.max_range_m = shine_config.preprocess.max_range_m;
+    const std::vector<std::size_t>& heldout = config.heldout_frames;
+    const auto score_heldout = [&](const TriangleMesh& mesh) {
+        return to_bench_heldout(
+            evaluate_heldout(mesh, scans.sequence(), heldout, heldout_config).total);
+    };
+
     // Both mappers get each scan before the next one is read; their own stats time them apart.
     BatchMapper shine(shine_config);
     auto tsdf = std::make_unique<TsdfMapper>(tsdf_config);
@@ -138,6 +152,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         Progress progress("load " + tag, scans.size());
         Scan storage;
         for (std::size_t i = 0; i < scans.size(); ++i) {
+            if (std::binary_search(heldout.begin(), heldout.end(), i)) continue;
             const Scan& scan = scans.scan(i, storage);
             shine.add_scan(scan);
             tsdf->add_scan(scan);
@@ -174,6 +189,10 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
             progress.update(2, "eval");
             tsdf_row.metrics = to_bench_metrics(evaluate_meshes(mesh, *reference, config.eval));
         }
+        if (!heldout.empty()) {
+            progress.update(2, "held-out scans");
+            tsdf_row.heldout = score_heldout(mesh);
+        }
         progress.finish(std::to_string(mesh.triangles.size()) + " triangles");
     }
 
@@ -194,10 +213,17 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         shine_row.seconds =
             mapping_seconds + products.save_seconds + products.bake_seconds + products.mesh_seconds;
         shine_row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
-        if (reference) {
-            progress.update(1, "eval");
-            shine_row.metrics = to_bench_metrics(
-                evaluate_meshes(read_ply_mesh(dir / "mesh.ply"), *reference, config.eval));
+        if (reference || !heldout.empty()) {
+            const TriangleMesh mesh = read_ply_mesh(dir / "mesh.ply");
+            if (reference) {
+                progress.update(1, "eval");
+                shine_row.metrics =
+                    to_bench_metrics(evaluate_meshes(mesh, *reference, config.eval));
+            }
+            if (!heldout.empty()) {
+                progress.update(1, "held-out scans");
+                shine_row.heldout = score_heldout(mesh);
+            }
         }
         progress.finish(std::to_string(products.mesh.triangles) + " triangles");
     }

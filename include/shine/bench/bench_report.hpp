@@ -24,6 +24,11 @@ struct BenchRatio {
     double memory_ratio = 0.0;                ///< ShineVDB map bytes / TSDF map bytes
     std::optional<double> chamfer_ratio;      ///< ShineVDB Chamfer-L1 / TSDF Chamfer-L1
     std::optional<double> fscore_difference;  ///< ShineVDB F-score - TSDF F-score (ratio units)
+    /// With held-out scans: ShineVDB - TSDF share of rays within the threshold and hit ratio
+    /// (ratio units), ShineVDB / TSDF median range error.
+    std::optional<double> heldout_within_difference;
+    std::optional<double> heldout_hit_difference;
+    std::optional<double> heldout_median_ratio;
 };
 
 /// Completion ratio of both methods at one resolution (check (c)).
@@ -60,6 +65,8 @@ struct BenchInfo {
     int iterations = -1;         ///< ShineVDB training steps; -1: automatic per leaf size
     bool half_features = false;  ///< ShineVDB features stored as float16
     double trunc_voxels = 3.0;   ///< TSDF truncation in voxels
+    int holdout_every = 0;       ///< every N-th scan held out and scored (0: none)
+    double heldout_threshold_m = 0.1;
 };
 
 /// Ratios per resolution (sorted by size) where both methods ran.
@@ -68,16 +75,18 @@ std::vector<BenchRatio> compute_ratios(const std::vector<BenchRow>& rows);
 /// The checks (a), (b), (c) above.
 BenchChecks compute_checks(const std::vector<BenchRow>& rows);
 
-/// CSV with a header line; metres, bytes, seconds, ratios in [0, 1]; empty metric fields when a
-/// row was not evaluated. Numbers are written in their shortest exact form, so rows_from_csv()
-/// gives back the same values.
+/// CSV with a header line; metres, bytes, seconds, ratios in [0, 1]; empty metric (held-out)
+/// fields when a row was not evaluated (held nothing out). Numbers are written in their shortest
+/// exact form, so rows_from_csv() gives back the same values.
 std::string rows_to_csv(const std::vector<BenchRow>& rows);
 
-/// Parses rows_to_csv() output. Throws DataError naming `source` and the line on a bad header,
+/// Parses rows_to_csv() output (also that of versions without the held-out columns). Throws
+/// DataError naming `source` and the line on a bad header,
 /// a wrong field count, or a value that is not a number.
 std::vector<BenchRow> rows_from_csv(const std::string& text, const std::string& source = "CSV");
 
-/// bench.json: info, rows (metrics as an "eval" object or null), ratios and checks.
+/// bench.json: info, rows (metrics as an "eval" object or null, held-out figures as a "heldout"
+/// object or null), ratios and checks.
 std::string bench_to_json(const std::vector<BenchRow>& rows, const BenchInfo& info);
 
 /// The rows of bench_to_json() output. Throws DataError naming `source` on malformed JSON.
@@ -88,6 +97,10 @@ std::string format_rows_table(const std::vector<BenchRow>& rows);
 
 /// Terminal table of compute_ratios(): memory ratio, Chamfer ratio, F-score difference.
 std::string format_ratios_table(const std::vector<BenchRatio>& ratios);
+
+/// Terminal table of the held-out figures of the rows that have them, each ShineVDB row followed
+/// by its differences to the TSDF row of its size; empty when no row has any.
+std::string format_heldout_table(const std::vector<BenchRow>& rows);
 
 /// The checks in words, with the numbers they rest on.
 std::string format_checks(const BenchChecks& checks);

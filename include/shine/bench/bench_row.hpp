@@ -34,6 +34,16 @@ struct BenchMetrics {
     double fscore = 0.0;
 };
 
+/// The held-out yardstick (eval/heldout_ranges.hpp) on the scans the run did not map: their rays
+/// cast into the run's mesh. Ratios in [0, 1], errors in metres over the rays that hit.
+struct BenchHeldout {
+    std::size_t rays = 0;
+    double hit_ratio = 0.0;
+    double within_ratio = 0.0;  ///< rays within the threshold (a miss is a failure)
+    double median_abs_error_m = 0.0;
+    double mean_abs_error_m = 0.0;
+};
+
 /// Memory, time and accuracy of one method at one resolution.
 struct BenchRow {
     BenchMethod method = BenchMethod::kShineVdb;
@@ -46,6 +56,7 @@ struct BenchRow {
     double seconds = 0.0;  ///< scans in memory -> mesh on disk (reading scans and eval excluded)
     double seconds_per_frame = 0.0;       ///< per-frame mapping time, as in the stats.json files
     std::optional<BenchMetrics> metrics;  ///< empty when there is no reference mesh
+    std::optional<BenchHeldout> heldout;  ///< empty when no scan was held out
 };
 
 }  // namespace shine

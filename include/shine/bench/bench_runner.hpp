@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "shine/bench/bench_row.hpp"
+#include "shine/eval/heldout_ranges.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/geometry/triangle_mesh.hpp"
 #include "shine/io/scan_sequence.hpp"
@@ -36,6 +37,12 @@ struct BenchConfig {
                             ///< except its voxel_downsample_m
     double trunc_voxels = 3.0;  ///< TSDF truncation in voxels (VDBFusion: 0.3 m at 0.1 m)
     EvalConfig eval;            ///< evaluation protocol (`shine eval`'s defaults)
+    /// Scans (indices into the sequence, ascending) that neither method maps; each mesh is
+    /// scored on them with the held-out yardstick. Empty: every scan is mapped.
+    std::vector<std::size_t> heldout_frames;
+    /// The yardstick's settings; run_bench_size() takes its range limits from ShineVDB's
+    /// preprocessing, as `shine map --holdout-every` does.
+    HeldoutConfig heldout;
     /// Scans are kept in memory for the whole study when their files total at most this many
     /// bytes (the bundled street: 90 MB).
     std::size_t scan_cache_bytes = std::size_t(2) << 30;
@@ -64,6 +71,7 @@ class BenchScans {
     BenchScans(ScanSequence sequence, std::size_t cache_budget_bytes);
 
     std::size_t size() const { return sequence_.size(); }
+    const ScanSequence& sequence() const { return sequence_; }
     bool cached() const { return !cache_.empty() || sequence_.size() == 0; }
     /// Scan i: the cached one, or read from disk into `storage` and returned. Throws what
     /// ScanSequence::load throws (IoError / DataError naming the file).
@@ -74,14 +82,18 @@ class BenchScans {
     std::vector<Scan> cache_;
 };
 
-/// Runs ShineVDB and the TSDF baseline at `size_m` on `scans`, writes their products under
-/// `out_dir` (see the file comment) and evaluates both meshes against `reference` when it is not
-/// null. Returns the ShineVDB row, then the TSDF row. Progress lines name the stage and the size.
+/// Runs ShineVDB and the TSDF baseline at `size_m` on `scans` (but config.heldout_frames),
+/// writes their products under `out_dir` (see the file comment), evaluates both meshes against
+/// `reference` when it is not null and scores them on the held-out scans when there are any.
+/// Returns the ShineVDB row, then the TSDF row. Progress lines name the stage and the size.
 std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
                                      const BenchScans& scans, const TriangleMesh* reference,
                                      const std::filesystem::path& out_dir);
 
 /// Mesh metrics in the study's units.
 BenchMetrics to_bench_metrics(const MeshMetrics& metrics);
+
+/// Pooled held-out figures in the study's units.
+BenchHeldout to_bench_heldout(const RangeErrorStats& stats);
 
 }  // namespace shine
