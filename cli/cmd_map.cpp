@@ -205,6 +205,8 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
              {"valid_points", r.valid_points},
              {"correction_m", r.correction_m},
              {"correction_deg", r.correction_rad * 180.0 / M_PI},
+             {"icp_inlier_ratio", r.icp_inlier_ratio},
+             {"yaw_hypotheses", r.yaw_hypotheses},
              {"seconds", r.seconds}});
     }
     const auto median = [](std::vector<double> v) {

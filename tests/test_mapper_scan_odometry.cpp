@@ -4,8 +4,11 @@
 // odometry section of the configuration is parsed and checked.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <tuple>
 
 #include "shine/core/error.hpp"
 #include "shine/io/binary_stream.hpp"
@@ -170,4 +173,40 @@ TEST(ScanOdometry, ConfigurationIsParsedAndChecked) {
     } catch (const ConfigError& e) {
         EXPECT_NE(std::string(e.what()).find("odometry.max_range_m"), std::string::npos);
     }
+}
+
+TEST(ScanOdometry, YawHypothesesFindATurnTheLocalRegistrationMisses) {
+    // A keyframe turned by 100 degrees and moved 1.2 m: ICP from the prediction (at rest) stops
+    // in a wrong minimum; from the headings 30 degrees apart one start lies in the right basin.
+    Vector6d xi;
+    xi << 1.0, 0.6, 0.0, 0.0, 0.0, 100.0 * M_PI / 180.0;
+    const Eigen::Isometry3d truth = se3_exp(xi);
+    const NeuralSdf map = empty_map();
+    const auto run = [&](int hypotheses) {
+        OdometryConfig config;
+        config.icp_yaw_hypotheses = hypotheses;
+        ScanOdometry odometry(config);
+        const Scan first = room_scan(Eigen::Isometry3d::Identity());
+        odometry.estimate(first, map);
+        odometry.remember_scan(first);
+        const OdometryRecord record = odometry.estimate(room_scan(truth), map);
+        const Vector6d error = se3_log(truth.inverse() * odometry.poses().back());
+        return std::make_tuple(record, error.head<3>().norm(), error.tail<3>().norm());
+    };
+    const auto [local, local_m, local_rad] = run(1);
+    EXPECT_EQ(local.yaw_hypotheses, 0);
+    EXPECT_LT(local.icp_inlier_ratio, 0.5);
+    EXPECT_GT(local_rad, 0.1) << "the local registration found the turn by itself";
+
+    const auto [found, found_m, found_rad] = run(12);
+    std::printf(
+        "from the prediction: inliers %.3f, error %.3f m %.2f deg; 12 headings: %.3f, "
+        "%.5f m %.4f deg\n",
+        local.icp_inlier_ratio, local_m, local_rad * 180 / M_PI, found.icp_inlier_ratio, found_m,
+        found_rad * 180 / M_PI);
+    EXPECT_EQ(found.yaw_hypotheses, 12);
+    EXPECT_TRUE(found.accepted);
+    EXPECT_GT(found.icp_inlier_ratio, 0.9);
+    EXPECT_LT(found_m, kTranslationTolM);
+    EXPECT_LT(found_rad, kRotationTolRad);
 }

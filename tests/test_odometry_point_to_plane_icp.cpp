@@ -144,3 +144,28 @@ TEST(PointToPlaneIcp, EmptyReferenceOrScanIsReportedAndBadInputThrows) {
     config.max_correspondence_distance_m = 0.0;
     EXPECT_THROW(register_point_to_plane(scan, true_pose(), planes, config), ConfigError);
 }
+
+TEST(PointToPlaneIcp, InlierRatioCountsPointsOnTheReferencePlanes) {
+    // The plane z = 0 with given normals; scan points 4 cm above it, 30 cm above it, and beyond
+    // the correspondence distance.
+    std::vector<Eigen::Vector3d> reference, normals;
+    for (double x = -5; x <= 5; x += 0.1) {
+        for (double y = -5; y <= 5; y += 0.1) {
+            reference.emplace_back(x, y, 0.0);
+            normals.emplace_back(0.0, 0.0, 1.0);
+        }
+    }
+    const ReferencePlanes planes(reference, normals);
+    std::vector<Eigen::Vector3f> points;
+    for (int i = 0; i < 6; ++i) points.emplace_back(0.5f * i - 1.0f, 0.3f, 0.04f);  // inliers
+    for (int i = 0; i < 3; ++i) points.emplace_back(0.5f * i, -1.0f, 0.3f);         // off the plane
+    points.emplace_back(20.0f, 0.0f, 0.0f);                                         // no match
+    const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
+    EXPECT_DOUBLE_EQ(point_to_plane_inlier_ratio(points, identity, planes, 1.0, 0.2), 0.6);
+    EXPECT_DOUBLE_EQ(point_to_plane_inlier_ratio(points, identity, planes, 1.0, 0.5), 0.9);
+    // Moved 4 cm down, the first six lie on the plane and the next three 26 cm above it.
+    Eigen::Isometry3d down = identity;
+    down.translation() = Eigen::Vector3d(0, 0, -0.04);
+    EXPECT_DOUBLE_EQ(point_to_plane_inlier_ratio(points, down, planes, 1.0, 0.01), 0.6);
+    EXPECT_DOUBLE_EQ(point_to_plane_inlier_ratio({}, identity, planes, 1.0, 0.2), 0.0);
+}

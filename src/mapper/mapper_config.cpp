@@ -228,6 +228,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"icp_reference_scans", number(c.odometry.icp_reference_scans, 1, 1000)},
           {"icp_max_correspondence_m", number(c.odometry.icp_max_correspondence_m, 1e-4, 100.0)},
           {"icp_kernel_scale_m", number(c.odometry.icp_kernel_scale_m, 1e-5, 100.0)},
+          {"icp_yaw_hypotheses", number(c.odometry.icp_yaw_hypotheses, 1, 360)},
+          {"icp_min_inlier_ratio", number(c.odometry.icp_min_inlier_ratio, 0.0, 1.0)},
           {"icp_coarse_correspondence_m",
            number(c.odometry.icp_coarse_correspondence_m, 0.0, 1000.0)},
           {"sdf_kernel_scale_m", number(c.odometry.sdf_kernel_scale_m, 1e-5, 100.0)},

@@ -1,6 +1,7 @@
 #include "shine/mapper/scan_odometry.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -76,6 +77,9 @@ ScanOdometry::ScanOdometry(const OdometryConfig& config) : config_(config) {
     require(config.icp_reference_scans >= 1, "icp_reference_scans", "must be at least 1");
     require(config.icp_max_correspondence_m > 0.0, "icp_max_correspondence_m", "must be positive");
     require(config.icp_kernel_scale_m > 0.0, "icp_kernel_scale_m", "must be positive");
+    require(config.icp_yaw_hypotheses >= 1, "icp_yaw_hypotheses", "must be at least 1");
+    require(config.icp_min_inlier_ratio >= 0.0 && config.icp_min_inlier_ratio <= 1.0,
+            "icp_min_inlier_ratio", "must be in [0, 1]");
     require(config.sdf_kernel_scale_m > 0.0, "sdf_kernel_scale_m", "must be positive");
     require(config.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
     require(config.min_scan_points >= 0, "min_scan_points", "must be >= 0");
@@ -124,15 +128,52 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
                     stages.emplace_back(coarse_m, 0.25 * coarse_m);
                 }
                 stages.emplace_back(config_.icp_max_correspondence_m, config_.icp_kernel_scale_m);
-                Eigen::Isometry3d from = prediction;
-                for (const auto& [correspondence_m, scale_m] : stages) {
-                    PointToPlaneIcpConfig icp_config;
-                    icp_config.max_correspondence_distance_m = correspondence_m;
-                    icp_config.solver = solver_config(config_, scale_m);
-                    result = register_point_to_plane(points, from, planes, icp_config);
-                    iterations += result.iterations;
-                    if (result.accepted()) from = result.T_world_sensor;
+                // Coarse to fine from `start`: the last stage's result, its pose (the start when
+                // no stage was accepted) and its fitness.
+                struct IcpRun {
+                    RegistrationResult result;
+                    Eigen::Isometry3d pose;
+                    double inlier_ratio = 0.0;
+                };
+                const auto run_icp = [&](const Eigen::Isometry3d& start) {
+                    IcpRun run;
+                    run.pose = start;
+                    for (const auto& [correspondence_m, scale_m] : stages) {
+                        PointToPlaneIcpConfig icp_config;
+                        icp_config.max_correspondence_distance_m = correspondence_m;
+                        icp_config.solver = solver_config(config_, scale_m);
+                        run.result = register_point_to_plane(points, run.pose, planes, icp_config);
+                        iterations += run.result.iterations;
+                        if (run.result.accepted()) run.pose = run.result.T_world_sensor;
+                    }
+                    run.inlier_ratio = point_to_plane_inlier_ratio(points, run.pose, planes,
+                                                                   config_.icp_max_correspondence_m,
+                                                                   config_.icp_kernel_scale_m);
+                    return run;
+                };
+                IcpRun best = run_icp(prediction);
+                const bool short_of_fitness =
+                    !best.result.accepted() || best.inlier_ratio < config_.icp_min_inlier_ratio;
+                if (short_of_fitness && config_.icp_yaw_hypotheses > 1) {
+                    // Headings about the world's vertical through the previous sensor position.
+                    const Eigen::Isometry3d& previous = poses_[k - 1];
+                    for (int h = 0; h < config_.icp_yaw_hypotheses; ++h) {
+                        const double yaw = 2.0 * M_PI * h / config_.icp_yaw_hypotheses;
+                        Eigen::Isometry3d start = previous;
+                        start.linear() =
+                            Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                            previous.linear();
+                        IcpRun run = run_icp(start);
+                        if (run.result.accepted() &&
+                            (!best.result.accepted() || run.inlier_ratio > best.inlier_ratio)) {
+                            best = std::move(run);
+                        }
+                    }
+                    record.yaw_hypotheses = config_.icp_yaw_hypotheses;
                 }
+                result = best.result;
+                const Eigen::Isometry3d from = best.pose;
+                record.icp_inlier_ratio = best.inlier_ratio;
                 sdf_start = from;
                 icp_found_start = result.accepted();
             }

@@ -130,4 +130,20 @@ RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& p
                                     config.solver);
 }
 
+double point_to_plane_inlier_ratio(const std::vector<Eigen::Vector3f>& points_sensor,
+                                   const Eigen::Isometry3d& T_world_sensor,
+                                   const ReferencePlanes& reference, double max_correspondence_m,
+                                   double inlier_m) {
+    if (points_sensor.empty()) return 0.0;
+    std::size_t inliers = 0;
+    for (const Eigen::Vector3f& p : points_sensor) {
+        const Eigen::Vector3d p_world = T_world_sensor * p.cast<double>();
+        const long j = reference.nearest(p_world, max_correspondence_m);
+        if (j < 0) continue;
+        const double r = reference.normals_world()[j].dot(p_world - reference.points_world()[j]);
+        if (std::abs(r) <= inlier_m) ++inliers;
+    }
+    return static_cast<double>(inliers) / static_cast<double>(points_sensor.size());
+}
+
 }  // namespace shine

@@ -33,8 +33,20 @@ struct OdometryConfig {
     /// ICP runs coarse to fine: first with matches up to this distance and a kernel of a quarter
     /// of it, then with the two settings above from that result. The second scan starts at rest
     /// (one pose behind it), metres from its pose; 1 m matches alone stop at a wrong minimum
-    /// there (measured: 0.4 of 3 m). 0 (or a value not above icp_max_correspondence_m): one stage.
-    double icp_coarse_correspondence_m = 4.0;
+    /// there (measured: 0.4 of 3 m). Keyframes of a walk 2.4-4.4 m apart need 8 m: with 4 m,
+    /// three of 35 steps stopped 2.3-4.6 m short (docs/odometry.md); on the street 8 m changes
+    /// nothing measurable. 0 (or a value not above icp_max_correspondence_m): one stage.
+    double icp_coarse_correspondence_m = 8.0;
+    /// When ICP from the prediction leaves fewer than icp_min_inlier_ratio of the registration
+    /// points within icp_kernel_scale_m of a reference plane (or is not accepted), it runs again
+    /// from the previous pose turned about the world's vertical (z) axis to each of
+    /// icp_yaw_hypotheses headings, 360/N degrees apart, and the start with the most inliers
+    /// wins. Keyframes of a walk can turn by 9-120 degrees between scans, which a local
+    /// registration from the constant-velocity prediction cannot bridge (docs/odometry.md). A
+    /// scan that registers well from the prediction, as on a drive at the sensor's frame rate,
+    /// costs nothing more. 1: off.
+    int icp_yaw_hypotheses = 12;
+    double icp_min_inlier_ratio = 0.5;
     /// Geman-McClure scale of the SDF residuals (the map's SDF at the points), m. Small: points
     /// the map has not seen yet (its untrained margin) must not pull the pose.
     double sdf_kernel_scale_m = 0.02;

@@ -72,6 +72,10 @@ struct OdometryRecord {
     double correction_m = 0.0;
     double correction_rad = 0.0;
     double seconds = 0.0;  ///< selection, reference and registration
+    /// ICP's fitness at its result (point_to_plane_inlier_ratio; 0 when ICP did not run), and
+    /// how many headings were tried after the prediction's ICP fell short (0: none).
+    double icp_inlier_ratio = 0.0;
+    std::int32_t yaw_hypotheses = 0;
 };
 
 /// The odometry of one run: poses and records of the scans seen so far.

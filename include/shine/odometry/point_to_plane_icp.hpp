@@ -74,4 +74,13 @@ RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& p
                                            const ReferencePlanes& reference,
                                            const PointToPlaneIcpConfig& config);
 
+/// ICP's fitness: the share of `points_sensor` that, at `T_world_sensor`, have a matchable
+/// reference point within `max_correspondence_m` and lie within `inlier_m` of its tangent plane
+/// (0 for no points). Used to tell a registration that found the scene from one stuck in a wrong
+/// minimum, whose points mostly float off the reference planes.
+double point_to_plane_inlier_ratio(const std::vector<Eigen::Vector3f>& points_sensor,
+                                   const Eigen::Isometry3d& T_world_sensor,
+                                   const ReferencePlanes& reference, double max_correspondence_m,
+                                   double inlier_m);
+
 }  // namespace shine
