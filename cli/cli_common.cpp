@@ -104,7 +104,7 @@ HoldoutSplit split_holdout(const ScanSequence& selected, int every) {
 
 void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& selected,
                    const HoldoutSplit& split, int every, const PreprocessConfig& preprocess,
-                   nlohmann::json& json) {
+                   nlohmann::json& json, const std::string& key) {
     if (split.heldout.empty()) return;
     const auto start = std::chrono::steady_clock::now();
     HeldoutConfig config;
@@ -112,10 +112,38 @@ void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& s
     config.max_range_m = preprocess.max_range_m;
     const HeldoutReport report =
         evaluate_heldout(read_ply_mesh(mesh_path), selected, split.heldout, config);
-    json["heldout"] = nlohmann::json::parse(heldout_to_json(report));
-    json["heldout"]["every"] = every;
-    json["seconds"]["heldout"] = seconds_since(start);
+    json[key] = nlohmann::json::parse(heldout_to_json(report));
+    json[key]["every"] = every;
+    json["seconds"][key] = seconds_since(start);
     std::printf("%s", format_heldout(report).c_str());
+}
+
+std::vector<Eigen::Isometry3d> heldout_poses_local_to_estimate(
+    const ScanSequence& selected, const HoldoutSplit& split,
+    const std::vector<Eigen::Isometry3d>& mapped_world_sensor) {
+    if (mapped_world_sensor.size() != split.mapped.size()) {
+        throw DataError(std::to_string(mapped_world_sensor.size()) + " estimated poses for " +
+                        std::to_string(split.mapped.size()) + " mapped scans");
+    }
+    std::vector<Eigen::Isometry3d> poses(selected.size(), Eigen::Isometry3d::Identity());
+    std::size_t m = 0;  // the last mapped scan so far, as an index into split.mapped
+    bool any_mapped = false;
+    for (std::size_t i = 0; i < selected.size(); ++i) {
+        if (m < split.mapped.size() && split.mapped[m] == i) {
+            poses[i] = mapped_world_sensor[m];
+            any_mapped = true;
+            ++m;
+            continue;
+        }
+        if (!any_mapped) {
+            throw DataError("held-out scan " + std::to_string(i) +
+                            " comes before every mapped scan: nothing to place it from");
+        }
+        const std::size_t a = m - 1;
+        poses[i] =
+            mapped_world_sensor[a] * selected.pose(split.mapped[a]).inverse() * selected.pose(i);
+    }
+    return poses;
 }
 
 }  // namespace shine::cli

@@ -58,10 +58,19 @@ struct HoldoutSplit {
 HoldoutSplit split_holdout(const ScanSequence& selected, int every);
 
 /// Scores `mesh_path` on the held-out scans of `selected` with the run's range limits, prints
-/// the table and stores it in json["heldout"] (and its seconds in json["seconds"]["heldout"]).
+/// the table and stores it in json[key] (and its seconds in json["seconds"][key]).
 void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& selected,
                    const HoldoutSplit& split, int every, const PreprocessConfig& preprocess,
-                   nlohmann::json& json);
+                   nlohmann::json& json, const std::string& key = "heldout");
+
+/// Poses for every scan of a run that estimated the poses of its mapped scans
+/// (`mapped_world_sensor`, one per split.mapped) and holds some out: a mapped scan keeps its
+/// estimate; a held-out scan h is placed relative to the nearest mapped scan a before it by the
+/// data's own relative motion, T(h) = T_est(a) T_data(a)^-1 T_data(h), so that the drift of the
+/// estimate against the data's poses is not counted as map error.
+std::vector<Eigen::Isometry3d> heldout_poses_local_to_estimate(
+    const ScanSequence& selected, const HoldoutSplit& split,
+    const std::vector<Eigen::Isometry3d>& mapped_world_sensor);
 
 /// --holdout-every N: map without every N-th selected scan and score the result on those.
 void add_holdout_option(CLI::App* cmd, int& holdout_every);

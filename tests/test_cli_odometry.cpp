@@ -202,3 +202,31 @@ TEST(OdometryCli, StoppedBatchRunRepeatsTheOdometryAndResumesToTheSameMap) {
     EXPECT_EQ(read_text(out / "poses.txt"), read_text(reference / "poses.txt"));
     EXPECT_EQ(read_text(out / "mesh.ply"), read_text(reference / "mesh.ply"));
 }
+
+TEST(OdometryCli, HeldOutScansAreAlsoScoredNextToTheEstimate) {
+    // Scans 3 and 7 held out. With estimated poses the held-out rays are cast twice: from the
+    // data's poses (the estimate's drift counts) and from poses placed next to the estimated pose
+    // of the mapped scan before each. On this street the estimate is within millimetres, so the
+    // two agree closely (measured: 83.28 and 83.60 % within 10 cm).
+    const fs::path out = test_dir() / "estimated_heldout";
+    fs::remove_all(out);
+    const CliResult r = run(map_args(street(), out, "--poses estimate --holdout-every 4"));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("relative to the estimated pose"), std::string::npos) << r.output;
+    const nlohmann::json stats = read_json(out / "stats.json");
+    const auto& global = stats.at("heldout").at("total");
+    const auto& local = stats.at("heldout_local").at("total");
+    EXPECT_EQ(global.at("rays"), local.at("rays"));
+    const double global_within = global.at("within_ratio").get<double>();
+    const double local_within = local.at("within_ratio").get<double>();
+    std::printf("held-out within 10 cm: %.4f at the data's poses, %.4f next to the estimate\n",
+                global_within, local_within);
+    EXPECT_GT(local_within, 0.5);
+    EXPECT_NEAR(local_within, global_within, 0.01);
+    // With the data's poses (nothing estimated) there is only the one score.
+    const fs::path given = test_dir() / "given_heldout";
+    fs::remove_all(given);
+    const CliResult g = run(map_args(street(), given, "--holdout-every 4"));
+    ASSERT_EQ(g.exit_code, 0) << g.output;
+    EXPECT_FALSE(read_json(given / "stats.json").contains("heldout_local"));
+}

@@ -10,6 +10,7 @@
 #include <type_traits>
 
 #include "shine/core/error.hpp"
+#include "shine/core/median.hpp"
 #include "shine/io/binary_stream.hpp"
 #include "shine/io/preprocess.hpp"
 #include "shine/mapper/checkpoint.hpp"
@@ -257,12 +258,9 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
 }
 
 double IncrementalMapper::median_frame_seconds() const {
-    if (frames_.empty()) return 0.0;
     std::vector<double> seconds;
     for (const auto& f : frames_) seconds.push_back(f.total_seconds);
-    std::sort(seconds.begin(), seconds.end());
-    const std::size_t n = seconds.size();
-    return n % 2 ? seconds[n / 2] : 0.5 * (seconds[n / 2 - 1] + seconds[n / 2]);
+    return median(std::move(seconds));
 }
 
 std::size_t IncrementalMapper::state_bytes() const {
