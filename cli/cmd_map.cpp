@@ -49,6 +49,8 @@ struct MapOptions {
     bool no_eval = false;
     bool quiet = false;
     bool print_config = false;
+    bool deskew = false;     ///< --deskew: deskew.mode on
+    bool no_deskew = false;  ///< --no-deskew: deskew.mode off
     bool half_features = false;
     bool full_features = false;
     std::string mode = "batch";
@@ -222,6 +224,27 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
                         {"scans", scans}};
 }
 
+/// What deskewing did (stats.json "deskew").
+nlohmann::json deskew_to_json(const DeskewConfig& config, const DeskewStats& stats,
+                              bool estimated_poses) {
+    nlohmann::json json = {{"mode", to_string(config.mode)},
+                           {"active", stats.active},
+                           {"motion", estimated_poses ? "estimated poses" : "given poses"},
+                           {"scan_period_s", config.scan_period_s},
+                           {"scans_deskewed", stats.scans_deskewed},
+                           {"scans_as_measured", stats.scans_as_measured},
+                           {"max_shift_m", stats.max_shift_m}};
+    const PointTimeFormat& f = stats.time_format;
+    if (!f.field.empty()) {
+        json["point_time"] = {{"field", f.field},
+                              {"type", f.type},
+                              {"unit", f.nanoseconds ? "ns" : "s"},
+                              {"reference", f.absolute ? "absolute" : "relative"},
+                              {"description", f.describe()}};
+    }
+    return json;
+}
+
 /// The stage profile: per stage the median over frames and the run total, plus per frame.
 nlohmann::json profile_to_json(const StageProfile& profile) {
     const StageSeconds medians = profile.frame_medians();
@@ -267,6 +290,8 @@ MapperConfig config_from_options(const MapOptions& opt) {
     if (opt.full_features) config.octree.feature_precision = FeaturePrecision::kFloat32;
     if (opt.mesh_every >= 0) config.incremental.mesh_every = opt.mesh_every;
     if (opt.max_map_mb >= 0.0) config.max_map_mb = opt.max_map_mb;
+    if (opt.deskew) config.deskew.mode = DeskewMode::kOn;
+    if (opt.no_deskew) config.deskew.mode = DeskewMode::kOff;
     return config;
 }
 
@@ -349,6 +374,19 @@ int run_map(const MapOptions& given_options) {
     // With --holdout-every N the map never sees every N-th scan; they score it afterwards.
     const HoldoutSplit split = split_holdout(selected, opt.holdout_every);
     const ScanSequence sequence = selected.subset(split.mapped);
+    // Deskewing: the first scan says whether there are times, before anything is written.
+    const bool deskew = deskew_active(config.deskew, config.odometry.estimate_poses);
+    if (deskew) {
+        const Scan first = sequence.load(0);
+        if (config.deskew.mode == DeskewMode::kOn) require_point_times(first);
+        if (!first.point_time_s.empty() && !resuming) {
+            std::printf(
+                "deskewing every scan at constant velocity between %s (scan times: %s; "
+                "docs/odometry.md)\n",
+                config.odometry.estimate_poses ? "the estimated poses" : "the given poses",
+                first.point_time_format.describe().c_str());
+        }
+    }
     const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
     const fs::path out = opt.out;
     if (!resuming && fs::exists(checkpoint_file(out))) {
@@ -445,6 +483,15 @@ int run_map(const MapOptions& given_options) {
                                                  : odometry_run ? &*odometry_run
                                                                 : nullptr;
     if (odometry_map) add_odometry_stats(*odometry_map, json);
+    const DeskewStats& deskew_stats = incremental ? incremental_map->deskew : batch_map->deskew;
+    json["deskew"] = deskew_to_json(config.deskew, deskew_stats, config.odometry.estimate_poses);
+    if (odometry_run)
+        json["deskew"]["odometry_scans_deskewed"] = odometry_run->deskew.scans_deskewed;
+    if (deskew_stats.scans_deskewed > 0) {
+        std::printf("deskew: %zu scans deskewed (%zu as measured), points moved up to %.3f m\n",
+                    deskew_stats.scans_deskewed, deskew_stats.scans_as_measured,
+                    deskew_stats.max_shift_m);
+    }
     const StageProfile& profile = incremental ? incremental_map->profile : batch_map->profile;
     json["profile"] = profile_to_json(profile);
 
@@ -546,6 +593,15 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     add_topic_option(cmd, opt->topic);
     add_evaluation_options(cmd, opt->ref_path, opt->no_eval);
     add_holdout_option(cmd, opt->holdout_every);
+    cmd->add_flag("--deskew", opt->deskew,
+                  "Deskew every scan: move its points, measured over the sweep, to the instant "
+                  "of the scan's pose at the constant velocity between consecutive poses (given "
+                  "or estimated). Needs per-point times (PLY/PCD/PointCloud2 field t, time, "
+                  "timestamp or offset_time). Default (deskew.mode: auto): only with --poses "
+                  "estimate, when the scans carry times");
+    cmd->add_flag("--no-deskew", opt->no_deskew,
+                  "Never deskew, not even with --poses estimate (deskew.mode: off)")
+        ->excludes("--deskew");
     cmd->add_flag("--half-features", opt->half_features,
                   "Store the features in float16 (the default; map.feature_precision: float16)");
     cmd->add_flag("--full-features", opt->full_features,

@@ -131,6 +131,11 @@ int run_simulate(const SimulateOptions& options) {
             options.origin_offset_m[0], options.origin_offset_m[1], options.origin_offset_m[2]);
     }
     const auto thread_limit = limit_threads(options.threads);
+    if (c.motion_distortion && (options.scene == "object" || options.route_requested)) {
+        throw ConfigError(
+            "--motion-distortion moves the sensor during each sweep of the street's drive: it "
+            "cannot be combined with --scene object or --route-km");
+    }
     if (c.movers.num_movers > 0 && (options.scene == "object" || options.route_requested)) {
         throw ConfigError(
             "--movers puts cars, cyclists and pedestrians on the street: it cannot "
@@ -148,12 +153,18 @@ int run_simulate(const SimulateOptions& options) {
         c.movers.num_movers > 0
             ? " with " + std::to_string(c.movers.num_movers) + " movers (simulation.json)"
             : "";
+    const std::string distortion =
+        c.motion_distortion
+            ? ", distorted by the sensor's motion during each sweep (" +
+                  format_number(c.trajectory.frame_spacing_m / c.movers.frame_period_s) +
+                  " m/s), in scans/NNNNNN.ply with per-point times t"
+            : "";
     std::printf(
-        "wrote %s: %d scans%s (%zu points, %zu..%zu per scan), poses.txt, gt_mesh.ply "
+        "wrote %s: %d scans%s%s (%zu points, %zu..%zu per scan), poses.txt, gt_mesh.ply "
         "(%zu triangles, %zu observed), simulation.json, README.txt in %.1f s\n",
-        options.out_dir.c_str(), summary.num_frames, movers.c_str(), summary.total_points,
-        summary.min_points_per_scan, summary.max_points_per_scan, summary.num_triangles,
-        summary.num_observed_triangles, summary.seconds);
+        options.out_dir.c_str(), summary.num_frames, movers.c_str(), distortion.c_str(),
+        summary.total_points, summary.min_points_per_scan, summary.max_points_per_scan,
+        summary.num_triangles, summary.num_observed_triangles, summary.seconds);
     return 0;
 }
 
@@ -218,6 +229,12 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
                     "(docs/movers.md)")
         ->check(CLI::Range(0, 1000))
         ->capture_default_str();
+    cmd->add_flag("--motion-distortion", c.motion_distortion,
+                  "the sensor keeps moving during each 0.1 s sweep (speed = --frame-spacing-m "
+                  "per 0.1 s: 10 m/s by default): each ray leaves from the pose along the drive "
+                  "at its own time; the scans, whose points carry that time, are written as "
+                  "scans/NNNNNN.ply (float x y z t, t in s after the scan's pose) instead of "
+                  "velodyne/*.bin (docs/odometry.md)");
     cmd->add_option("--threads", options->threads, "worker threads (0 = all cores)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();

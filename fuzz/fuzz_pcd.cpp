@@ -1,13 +1,17 @@
-// libFuzzer target: PCD point clouds (ascii, binary, binary_compressed).
+// libFuzzer target: PCD point clouds (ascii, binary, binary_compressed), with per-point times.
 #include "fuzz_common.hpp"
 #include "shine/io/pcd.hpp"
 #include "shine/io/preprocess.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     shine_fuzz::expect_value_or_error([&] {
-        const auto points =
-            shine::parse_pcd_points(shine_fuzz::as_view(data, size), shine_fuzz::kSource);
-        shine::preprocess_scan(points, shine::PreprocessConfig{}, shine_fuzz::kSource);
+        const shine::TimedPoints scan =
+            shine::parse_pcd_scan(shine_fuzz::as_view(data, size), shine_fuzz::kSource);
+        // Scans with per-point times: one time per point, or none.
+        if (!scan.point_time_s.empty() && scan.point_time_s.size() != scan.points_sensor.size()) {
+            std::abort();
+        }
+        shine::preprocess_scan(scan.points_sensor, shine::PreprocessConfig{}, shine_fuzz::kSource);
     });
     return 0;
 }

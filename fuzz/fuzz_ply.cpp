@@ -1,4 +1,5 @@
-// libFuzzer target: PLY meshes and point clouds (ascii, binary little and big endian).
+// libFuzzer target: PLY meshes and point clouds (ascii, binary little and big endian), with
+// per-point times.
 #include "fuzz_common.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/preprocess.hpp"
@@ -25,6 +26,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     shine_fuzz::expect_value_or_error([&] {
         const auto points = shine::parse_ply_points(bytes, shine_fuzz::kSource);
         shine::preprocess_scan(points, shine::PreprocessConfig{}, shine_fuzz::kSource);
+    });
+    shine_fuzz::expect_value_or_error([&] {
+        // Scans with per-point times: one time per point, or none.
+        const shine::TimedPoints scan = shine::parse_ply_scan(bytes, shine_fuzz::kSource);
+        if (!scan.point_time_s.empty() && scan.point_time_s.size() != scan.points_sensor.size()) {
+            std::abort();
+        }
     });
     return 0;
 }

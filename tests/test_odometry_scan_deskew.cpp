@@ -62,6 +62,37 @@ TEST(ScanDeskew, PointsAtTheReferenceTimeDoNotMoveAndPoseAtMinusIntervalIsThePre
     EXPECT_LT((back.matrix() - T_prev_cur.inverse().matrix()).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+TEST(ScanDeskew, BetweenUsesTheMotionOnEachSideOfTheReference) {
+    // Before the reference the car drove straight at 10 m/s, after it it turns at 30 deg/s.
+    Vector6d before, after;
+    before << 10.0, 0.0, 0.0, 0.0, 0.0, 0.0;
+    after << 10.0, 0.0, 0.0, 0.0, 0.0, 30.0 * M_PI / 180.0;
+    const double interval_s = 0.1;
+    std::vector<Eigen::Vector3f> measured, expected;
+    std::vector<double> times;
+    for (int i = 0; i <= 20; ++i) {
+        const double t = -0.05 + 0.005 * i;
+        const Eigen::Vector3d x(20.0 * std::cos(i), 20.0 * std::sin(i), 1.0);  // reference frame
+        const Eigen::Isometry3d T_ref_t = se3_exp(t * (t < 0.0 ? before : after));
+        measured.push_back((T_ref_t.inverse() * x).cast<float>());
+        expected.push_back(x.cast<float>());
+        times.push_back(t);
+    }
+    const auto out = deskew_scan_between(measured, times, se3_exp(interval_s * before), interval_s,
+                                         se3_exp(interval_s * after), interval_s);
+    double max_error = 0.0;
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        max_error = std::max(max_error, double((out[i] - expected[i]).norm()));
+    }
+    EXPECT_LT(max_error, kPointTolM);
+    // One velocity for the whole sweep (either side's) misses the other side's points.
+    const auto one = deskew_scan(measured, times, se3_exp(interval_s * before), interval_s);
+    EXPECT_GT(double((one.back() - expected.back()).norm()), 0.1);
+    EXPECT_THROW(deskew_scan_between(measured, times, Eigen::Isometry3d::Identity(), 0.1,
+                                     Eigen::Isometry3d::Identity(), 0.0),
+                 ConfigError);
+}
+
 TEST(ScanDeskew, MismatchedTimesOrIntervalAreErrors) {
     const std::vector<Eigen::Vector3f> points = {{1, 2, 3}};
     EXPECT_THROW(deskew_scan(points, {0.0, 0.1}, Eigen::Isometry3d::Identity(), 0.1), DataError);

@@ -17,6 +17,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/io/file_contents.hpp"
+#include "shine/io/point_times.hpp"
 
 namespace shine {
 namespace fs = std::filesystem;
@@ -73,6 +74,7 @@ struct Header {
     std::size_t data_offset = 0;
     std::size_t data_line = 0;
     int xyz_field[3] = {-1, -1, -1};
+    int time_field = -1;  ///< the per-point time field (point_times.hpp), -1 without one
 };
 
 Header parse_header(const fs::path& path, std::string_view data) {
@@ -231,6 +233,19 @@ Header parse_header(const fs::path& path, std::string_view data) {
                      std::to_string(f.count) + ")");
         }
     }
+    {
+        std::vector<std::string> names;
+        for (const Field& f : h.fields) names.push_back(f.count == 1 ? f.name : std::string());
+        h.time_field = find_point_time_field(names);
+        if (h.time_field >= 0) {
+            const Field& f = h.fields[h.time_field];
+            if (f.type == 'F' && f.size != 4 && f.size != 8) {
+                fail(path, line_text(sizes_line),
+                     "time field '" + f.name + "' is TYPE F with SIZE " + std::to_string(f.size) +
+                         " (expected 4 or 8)");
+            }
+        }
+    }
     if (!have_width && !have_points) fail(path, header_where, "has neither WIDTH nor POINTS");
     if (have_width) {
         if (height != 0 && width > UINT64_MAX / height) {
@@ -258,8 +273,39 @@ float read_coordinate(const char* p, std::size_t size) {
     return static_cast<float>(v);
 }
 
+/// Reads one value of any PCD type (little-endian) as a double.
+double read_value(const char* p, const Field& f) {
+    const auto load = [p](auto v) {
+        std::memcpy(&v, p, sizeof(v));
+        return static_cast<double>(v);
+    };
+    if (f.type == 'F') return f.size == 4 ? load(float{}) : load(double{});
+    if (f.type == 'I') {
+        switch (f.size) {
+            case 1:
+                return load(std::int8_t{});
+            case 2:
+                return load(std::int16_t{});
+            case 4:
+                return load(std::int32_t{});
+            default:
+                return load(std::int64_t{});
+        }
+    }
+    switch (f.size) {
+        case 1:
+            return load(std::uint8_t{});
+        case 2:
+            return load(std::uint16_t{});
+        case 4:
+            return load(std::uint32_t{});
+        default:
+            return load(std::uint64_t{});
+    }
+}
+
 std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view data,
-                                        const Header& h) {
+                                        const Header& h, std::vector<double>* times) {
     const std::size_t remaining = data.size() - h.data_offset;
     // Each point needs at least one character and one separator per value.
     if (h.points > (remaining + 1) / (2 * h.token_count)) {
@@ -269,13 +315,16 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view d
                  " bytes of data follow: truncated file or corrupt "
                  "header");
     }
-    // Token index of x, y, z within a line.
-    std::size_t xyz_token[3];
-    for (int axis = 0; axis < 3; ++axis) {
+    // Token index of x, y, z (and the time) within a line.
+    const auto token_of = [&h](int field) {
         std::size_t t = 0;
-        for (int i = 0; i < h.xyz_field[axis]; ++i) t += h.fields[i].count;
-        xyz_token[axis] = t;
-    }
+        for (int i = 0; i < field; ++i) t += h.fields[i].count;
+        return t;
+    };
+    std::size_t xyz_token[3];
+    for (int axis = 0; axis < 3; ++axis) xyz_token[axis] = token_of(h.xyz_field[axis]);
+    const std::size_t time_token = h.time_field >= 0 ? token_of(h.time_field) : 0;
+    if (h.time_field >= 0) times->reserve(static_cast<std::size_t>(h.points));
     std::vector<Eigen::Vector3f> points;
     points.reserve(static_cast<std::size_t>(h.points));
     std::size_t pos = h.data_offset;
@@ -308,6 +357,14 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view d
             }
             p[axis] = static_cast<float>(v);
         }
+        if (h.time_field >= 0) {
+            double t = 0.0;
+            if (!parse_double(words[time_token], &t)) {
+                fail(path, where,
+                     "time '" + printable_excerpt(words[time_token]) + "' is not a number");
+            }
+            times->push_back(t);
+        }
         points.push_back(p);
     }
     if (points.size() != h.points) {
@@ -319,7 +376,7 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view d
 }
 
 std::vector<Eigen::Vector3f> read_binary(const fs::path& path, std::string_view data,
-                                         const Header& h) {
+                                         const Header& h, std::vector<double>* times) {
     const std::size_t remaining = data.size() - h.data_offset;
     if (h.points > remaining / h.record_size) {
         fail(path, "byte offset " + std::to_string(h.data_offset),
@@ -334,6 +391,13 @@ std::vector<Eigen::Vector3f> read_binary(const fs::path& path, std::string_view 
         for (int axis = 0; axis < 3; ++axis) {
             const Field& f = h.fields[h.xyz_field[axis]];
             points[i][axis] = read_coordinate(record + f.offset, f.size);
+        }
+    }
+    if (h.time_field >= 0) {
+        const Field& f = h.fields[h.time_field];
+        times->resize(points.size());
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            (*times)[i] = read_value(base + i * h.record_size + f.offset, f);
         }
     }
     return points;
@@ -387,7 +451,7 @@ void lzf_decompress(const unsigned char* in, std::size_t in_size, unsigned char*
 }
 
 std::vector<Eigen::Vector3f> read_compressed(const fs::path& path, std::string_view data,
-                                             const Header& h) {
+                                             const Header& h, std::vector<double>* times) {
     const std::size_t remaining = data.size() - h.data_offset;
     const std::string sizes_where = "byte offset " + std::to_string(h.data_offset);
     if (remaining < 8) {
@@ -429,6 +493,12 @@ std::vector<Eigen::Vector3f> read_compressed(const fs::path& path, std::string_v
             points[i][axis] = read_coordinate(column + i * f.size, f.size);
         }
     }
+    if (h.time_field >= 0) {
+        const Field& f = h.fields[h.time_field];
+        const char* column = soa.data() + f.offset * n;
+        times->resize(n);
+        for (std::size_t i = 0; i < n; ++i) (*times)[i] = read_value(column + i * f.size, f);
+    }
     return points;
 }
 
@@ -440,17 +510,38 @@ std::vector<Eigen::Vector3f> read_pcd_points(const fs::path& path) {
 }
 
 std::vector<Eigen::Vector3f> parse_pcd_points(std::string_view data, const fs::path& path) {
+    return parse_pcd_scan(data, path).points_sensor;
+}
+
+TimedPoints read_pcd_scan(const fs::path& path, std::optional<double> stamp_s) {
+    return parse_pcd_scan(read_file_contents(path, "PCD file", "a .pcd file"), path, stamp_s);
+}
+
+TimedPoints parse_pcd_scan(std::string_view data, const fs::path& path,
+                           std::optional<double> stamp_s) {
     using namespace pcd_internal;
     const Header header = parse_header(path, data);
+    TimedPoints scan;
+    std::vector<double> raw_times;
     switch (header.encoding) {
         case Encoding::kAscii:
-            return read_ascii(path, data, header);
+            scan.points_sensor = read_ascii(path, data, header, &raw_times);
+            break;
         case Encoding::kBinary:
-            return read_binary(path, data, header);
+            scan.points_sensor = read_binary(path, data, header, &raw_times);
+            break;
         case Encoding::kBinaryCompressed:
-            return read_compressed(path, data, header);
+            scan.points_sensor = read_compressed(path, data, header, &raw_times);
+            break;
     }
-    return {};
+    if (header.time_field >= 0) {
+        const Field& f = header.fields[header.time_field];
+        scan.time_format.field = f.name;
+        scan.time_format.type = std::string(1, f.type) + std::to_string(f.size);
+        scan.point_time_s =
+            point_times_relative_s(raw_times, f.type != 'F', stamp_s, &scan.time_format);
+    }
+    return scan;
 }
 
 void write_pcd_points(const fs::path& path, const std::vector<Eigen::Vector3f>& points) {

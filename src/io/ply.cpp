@@ -408,9 +408,35 @@ class AsciiReader {
     std::size_t line_;
 };
 
+const char* scalar_name(Scalar s) {
+    switch (s) {
+        case Scalar::kInt8:
+            return "int8";
+        case Scalar::kUint8:
+            return "uint8";
+        case Scalar::kInt16:
+            return "int16";
+        case Scalar::kUint16:
+            return "uint16";
+        case Scalar::kInt32:
+            return "int32";
+        case Scalar::kUint32:
+            return "uint32";
+        case Scalar::kFloat32:
+            return "float32";
+        case Scalar::kFloat64:
+            return "float64";
+    }
+    return "";
+}
+
 struct ReadResult {
     TriangleMesh mesh;
     bool has_vertex_element = false;
+    /// Points only: the stored values of the vertex element's time property (point_times.hpp).
+    std::vector<double> raw_times;
+    std::string time_field;  ///< "" without one
+    Scalar time_type = Scalar::kFloat32;
 };
 
 /// Reads a list length and checks it is a sane non-negative integer.
@@ -452,6 +478,20 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
             if (xyz_index[0] < 0 || xyz_index[1] < 0 || xyz_index[2] < 0) {
                 fail(path, element_where, "vertex element lacks an x, y or z property");
             }
+            // Scans: the per-point time, the first scalar property with a time field's name.
+            int time_index = -1;
+            if (!want_faces) {
+                std::vector<std::string> scalar_names;
+                for (const Property& p : e.properties) {
+                    scalar_names.push_back(p.is_list ? std::string() : p.name);
+                }
+                time_index = find_point_time_field(scalar_names);
+                if (time_index >= 0) {
+                    result->time_field = e.properties[time_index].name;
+                    result->time_type = e.properties[time_index].type;
+                    result->raw_times.resize(static_cast<std::size_t>(e.count));
+                }
+            }
             mesh.vertices.resize(static_cast<std::size_t>(e.count));
             for (std::uint64_t v = 0; v < e.count; ++v) {
                 Eigen::Vector3f& out = mesh.vertices[static_cast<std::size_t>(v)];
@@ -468,6 +508,9 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
                         if (static_cast<int>(i) == xyz_index[axis]) {
                             out[axis] = static_cast<float>(value);
                         }
+                    }
+                    if (static_cast<int>(i) == time_index) {
+                        result->raw_times[static_cast<std::size_t>(v)] = value;
                     }
                 }
                 // Scans may hold NaN for "no return" (preprocess_scan drops it); a mesh vertex
@@ -594,7 +637,8 @@ char* put_le(char* out, T value) {
 
 std::string header_text(std::size_t vertex_count, std::size_t face_count, bool with_faces,
                         bool with_observed,
-                        const Eigen::Vector3d& origin_world_m = Eigen::Vector3d::Zero()) {
+                        const Eigen::Vector3d& origin_world_m = Eigen::Vector3d::Zero(),
+                        bool with_time = false) {
     std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by ShineVDB\n";
     if (!origin_world_m.isZero(0.0)) {
         h += "comment " + std::string(kOriginComment);
@@ -603,6 +647,7 @@ std::string header_text(std::size_t vertex_count, std::size_t face_count, bool w
     }
     h += "element vertex " + std::to_string(vertex_count) + "\n";
     h += "property float x\nproperty float y\nproperty float z\n";
+    if (with_time) h += "property float t\n";
     if (with_faces) {
         h += "element face " + std::to_string(face_count) + "\n";
         h += "property list uchar int vertex_indices\n";
@@ -638,6 +683,25 @@ std::vector<Eigen::Vector3f> read_ply_points(const fs::path& path) {
 
 std::vector<Eigen::Vector3f> parse_ply_points(std::string_view data, const fs::path& source) {
     return std::move(ply_internal::parse_ply(data, source, /*want_faces=*/false).mesh.vertices);
+}
+
+TimedPoints read_ply_scan(const fs::path& path, std::optional<double> stamp_s) {
+    return parse_ply_scan(read_file_contents(path, "PLY file", "a .ply file"), path, stamp_s);
+}
+
+TimedPoints parse_ply_scan(std::string_view data, const fs::path& source,
+                           std::optional<double> stamp_s) {
+    using namespace ply_internal;
+    ReadResult read = parse_ply(data, source, /*want_faces=*/false);
+    TimedPoints scan;
+    scan.points_sensor = std::move(read.mesh.vertices);
+    if (!read.time_field.empty()) {
+        scan.time_format.field = read.time_field;
+        scan.time_format.type = scalar_name(read.time_type);
+        scan.point_time_s = point_times_relative_s(read.raw_times, is_integer(read.time_type),
+                                                   stamp_s, &scan.time_format);
+    }
+    return scan;
 }
 
 void write_ply_mesh(const fs::path& path, const TriangleMesh& mesh) {
@@ -682,6 +746,27 @@ void write_ply_points(const fs::path& path, const std::vector<Eigen::Vector3f>& 
     std::string buffer(header.size() + points.size() * 3 * sizeof(float), '\0');
     std::memcpy(buffer.data(), header.data(), header.size());
     put_vertices(buffer.data() + header.size(), points);
+    write_stream_atomically(path, [&](std::ostream& stream) {
+        stream.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    });
+}
+
+void write_ply_scan(const fs::path& path, const std::vector<Eigen::Vector3f>& points,
+                    const std::vector<double>& point_time_s) {
+    using namespace ply_internal;
+    if (point_time_s.size() != points.size()) {
+        throw DataError("cannot write '" + path.string() + "': " + std::to_string(points.size()) +
+                        " points but " + std::to_string(point_time_s.size()) + " point times");
+    }
+    const std::string header = header_text(points.size(), 0, /*with_faces=*/false, false,
+                                           Eigen::Vector3d::Zero(), /*with_time=*/true);
+    std::string buffer(header.size() + points.size() * 4 * sizeof(float), '\0');
+    std::memcpy(buffer.data(), header.data(), header.size());
+    char* out = buffer.data() + header.size();
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        for (int a = 0; a < 3; ++a) out = put_le(out, points[i][a]);
+        out = put_le(out, static_cast<float>(point_time_s[i]));
+    }
     write_stream_atomically(path, [&](std::ostream& stream) {
         stream.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
     });

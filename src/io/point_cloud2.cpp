@@ -11,6 +11,7 @@
 
 #include "recording_bytes.hpp"
 #include "shine/core/error.hpp"
+#include "shine/io/point_times.hpp"
 
 namespace shine {
 
@@ -207,16 +208,17 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
         }
     }
     const Field* time = nullptr;
-    for (const char* name : {"t", "time", "timestamp", "offset_time"}) {
-        time = find_field(cloud, name);
+    for (const std::string_view name : point_time_field_names()) {
+        time = find_field(cloud, std::string(name).c_str());
         if (time) break;
     }
     if (time) {
         const std::uint8_t tt = time->datatype;
-        if (tt != kUint32 && tt != kFloat32 && tt != kFloat64) {
+        if (tt < kInt8 || tt > kFloat64) {
             throw DataError(where + ": per-point time field '" + time->name + "' has datatype " +
                             std::to_string(tt) +
-                            "; supported are uint32 (nanoseconds) and float32/float64 (seconds)");
+                            "; supported are the integer types (nanoseconds) and float32/float64 "
+                            "(seconds)");
         }
     }
     const std::uint64_t n_points = std::uint64_t{cloud.width} * cloud.height;
@@ -246,7 +248,6 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
     out.points_sensor.reserve(static_cast<std::size_t>(n_points));
     std::vector<double> raw_time;
     if (time) raw_time.reserve(static_cast<std::size_t>(n_points));
-    double max_abs_time = 0.0;
     for (std::uint32_t row = 0; row < cloud.height; ++row) {
         const char* row_data = cloud.data.data() + std::size_t{row} * cloud.row_step;
         for (std::uint32_t col = 0; col < cloud.width; ++col) {
@@ -259,25 +260,18 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
             }
             out.points_sensor.push_back(v);
             if (time) {
-                const char* q = p + time->offset;
-                double t;
-                if (time->datatype == kUint32) {
-                    t = static_cast<double>(load<std::uint32_t>(q)) * 1e-9;
-                } else {
-                    t = read_number(q, time->datatype);
-                }
-                raw_time.push_back(t);
-                if (std::isfinite(t)) max_abs_time = std::max(max_abs_time, std::abs(t));
+                raw_time.push_back(read_number(p + time->offset, time->datatype));
             }
         }
     }
     if (time) {
-        // Absolute times (seconds since an epoch) are far larger than a scan's duration.
-        constexpr double kAbsoluteTimeS = 1e6;
-        const double offset = max_abs_time > kAbsoluteTimeS ? out.stamp_s : 0.0;
-        out.point_time_s.resize(raw_time.size());
-        for (std::size_t i = 0; i < raw_time.size(); ++i)
-            out.point_time_s[i] = raw_time[i] - offset;
+        // Unit and reference by point_times.hpp's rules; absolute times lose the header stamp.
+        const bool integer = time->datatype != kFloat32 && time->datatype != kFloat64;
+        static const char* const kTypeNames[] = {"",      "int8",   "uint8",   "int16",  "uint16",
+                                                 "int32", "uint32", "float32", "float64"};
+        out.time_format.field = time->name;
+        out.time_format.type = kTypeNames[time->datatype];
+        out.point_time_s = point_times_relative_s(raw_time, integer, out.stamp_s, &out.time_format);
         out.time_field = time->name;
     }
     return out;

@@ -212,6 +212,7 @@ ScanSequence ScanSequence::open_recording(const fs::path& path,
         seq.poses_.push_back(T);
         seq.stamps_s_.push_back(stamp_s);
         seq.scan_paths_.push_back(path);
+        seq.frame_numbers_.push_back(selected[k]);
         state->messages.push_back(m);
         state->message_numbers.push_back(selected[k]);
         progress.update(k + 1);
@@ -253,6 +254,7 @@ ScanSequence ScanSequence::open(const fs::path& dir, const ScanSequenceOptions& 
         for (std::size_t i : select_frames(all_scans.size(), options, dir.string(), "scans")) {
             seq.scan_paths_.push_back(all_scans[i]);
             seq.poses_.push_back(Eigen::Isometry3d::Identity());
+            seq.frame_numbers_.push_back(i);
         }
         return seq;
     }
@@ -306,6 +308,7 @@ ScanSequence ScanSequence::open(const fs::path& dir, const ScanSequenceOptions& 
     for (std::size_t i : select_frames(all_scans.size(), options, dir.string(), "scans")) {
         seq.scan_paths_.push_back(all_scans[i]);
         seq.poses_.push_back(all_poses[i]);
+        seq.frame_numbers_.push_back(i);
     }
     return seq;
 }
@@ -329,16 +332,19 @@ Scan ScanSequence::load(std::size_t i) const {
         PointCloud2Scan cloud = decode_point_cloud2(bytes, state.topic.encoding, where);
         scan.points_sensor = std::move(cloud.points_sensor);
         scan.point_time_s = std::move(cloud.point_time_s);
+        scan.point_time_format = std::move(cloud.time_format);
         scan.stamp_s = stamps_s_.at(i);
         return scan;
     }
     const std::string ext = lower_extension(scan.source);
     if (ext == ".bin") {
         scan.points_sensor = read_kitti_bin(scan.source);
-    } else if (ext == ".ply") {
-        scan.points_sensor = read_ply_points(scan.source);
-    } else if (ext == ".pcd") {
-        scan.points_sensor = read_pcd_points(scan.source);
+    } else if (ext == ".ply" || ext == ".pcd") {
+        TimedPoints points =
+            ext == ".ply" ? read_ply_scan(scan.source) : read_pcd_scan(scan.source);
+        scan.points_sensor = std::move(points.points_sensor);
+        scan.point_time_s = std::move(points.point_time_s);
+        scan.point_time_format = std::move(points.time_format);
     } else {
         throw IoError("scan '" + scan.source.string() + "' has an unsupported extension");
     }
@@ -369,6 +375,7 @@ ScanSequence ScanSequence::subset(const std::vector<std::size_t>& indices) const
         }
         part.scan_paths_.push_back(scan_paths_[i]);
         part.poses_.push_back(poses_[i]);
+        part.frame_numbers_.push_back(frame_number(i));
         if (i < stamps_s_.size()) part.stamps_s_.push_back(stamps_s_[i]);
         if (recording_) {
             part.recording_index_.push_back(recording_index_.empty() ? i : recording_index_[i]);

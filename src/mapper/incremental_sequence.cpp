@@ -28,6 +28,25 @@ std::string frame_name(std::size_t frame) {
     return name;
 }
 
+/// Deskews scan `i` of `sequence` for mapping (sequence_deskew.hpp): with the sequence's poses,
+/// or with the odometry's motion from pose i-1 to the estimated pose i (scan 0 as measured).
+void deskew_for_mapping(Scan& scan, const ScanSequence& sequence, std::size_t i,
+                        const DeskewConfig& config, const ScanOdometry* odometry,
+                        DeskewStats& stats) {
+    if (!odometry) {
+        deskew_with_sequence_poses(scan, sequence, i, config, stats);
+        return;
+    }
+    if (config.mode == DeskewMode::kOn) require_point_times(scan);
+    if (scan.point_time_s.empty() || i == 0) {
+        ++stats.scans_as_measured;
+        return;
+    }
+    const std::vector<Eigen::Isometry3d>& poses = odometry->poses();
+    deskew_in_place(scan, poses.at(i - 1).inverse() * poses.at(i),
+                    scan_interval_s(sequence, i - 1, i, config.scan_period_s), stats);
+}
+
 // Incremental checkpoints: the frames done, the mapper's state, the stage profile so far and the
 // progress meshes written so far.
 void write_incremental_checkpoint(const RunControl& control, const IncrementalSequenceMap& result,
@@ -54,7 +73,8 @@ void write_incremental_checkpoint(const RunControl& control, const IncrementalSe
 
 /// Replays the checkpoint's frames into `result` and restores its state; returns the frames done.
 std::size_t resume_incremental(const RunControl& control, const ScanSequence& sequence,
-                               IncrementalSequenceMap& result, const std::string& progress_tag) {
+                               IncrementalSequenceMap& result, const std::string& progress_tag,
+                               const DeskewConfig* deskew) {
     std::string description;
     CheckpointMode mode;
     BinaryReader in = read_checkpoint_header(control.checkpoint_path, description, mode);
@@ -87,6 +107,10 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
             if (result.odometry) {
                 scan.T_world_sensor = result.odometry->poses()[i];
                 if (!result.odometry->mapped(i)) continue;
+            }
+            if (deskew) {
+                deskew_for_mapping(scan, sequence, i, *deskew, result.odometry.get(),
+                                   result.deskew);
             }
             result.mapper->replay_scan(scan);
             if (result.odometry) result.odometry->remember_scan(scan);
@@ -129,9 +153,12 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
         result.odometry = std::make_unique<ScanOdometry>(config.odometry);
     }
     const bool checkpoints = control && !control->checkpoint_path.empty();
+    const bool deskew = deskew_active(config.deskew, config.odometry.estimate_poses);
+    result.deskew.active = deskew;
     std::size_t first_frame = 0;
     if (checkpoints && control->resume) {
-        first_frame = resume_incremental(*control, sequence, result, progress_tag);
+        first_frame = resume_incremental(*control, sequence, result, progress_tag,
+                                         deskew ? &config.deskew : nullptr);
     }
     CheckpointClock clock(checkpoints ? control->checkpoint_interval_s : 0.0);
     {
@@ -141,10 +168,29 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
             const auto t_load = std::chrono::steady_clock::now();
             Scan scan = sequence.load(i);
             const double load_seconds = seconds_since(t_load);
+            if (deskew && config.deskew.mode == DeskewMode::kOn) require_point_times(scan);
             const OdometryRecord* pose = nullptr;
             if (result.odometry) {
-                pose = &result.odometry->estimate(scan, mapper.sdf());
+                // Registered deskewed at the last estimated motion (the prediction's velocity);
+                // the first two scans have none yet and register as measured.
+                Scan deskewed;
+                const Scan* registered = &scan;
+                if (deskew && !scan.point_time_s.empty() && i >= 2) {
+                    const std::vector<Eigen::Isometry3d>& poses = result.odometry->poses();
+                    deskewed = scan;
+                    DeskewStats not_mapped;
+                    deskew_in_place(
+                        deskewed, poses[i - 2].inverse() * poses[i - 1],
+                        scan_interval_s(sequence, i - 2, i - 1, config.deskew.scan_period_s),
+                        not_mapped);
+                    registered = &deskewed;
+                }
+                pose = &result.odometry->estimate(*registered, mapper.sdf());
                 scan.T_world_sensor = result.odometry->poses().back();
+            }
+            if (deskew && !(pose && pose->source == PoseSource::kSkipped)) {
+                deskew_for_mapping(scan, sequence, i, config.deskew, result.odometry.get(),
+                                   result.deskew);
             }
             if (pose && pose->source == PoseSource::kSkipped) {
                 std::fprintf(stderr,

@@ -109,9 +109,12 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
     }
     {
         Progress progress(tagged("load", progress_tag), sequence.size());
+        const bool deskew = deskew_active(config.deskew, config.odometry.estimate_poses);
+        result.deskew.active = deskew;
         for (std::size_t i = 0; i < sequence.size(); ++i) {
             const auto t0 = std::chrono::steady_clock::now();
-            const Scan scan = sequence.load(i);
+            Scan scan = sequence.load(i);
+            if (deskew) deskew_with_sequence_poses(scan, sequence, i, config.deskew, result.deskew);
             const double load_seconds = seconds_since(t0);
             StageSeconds stages = mapper.add_scan(scan);
             stages[Stage::kLoad] = load_seconds;

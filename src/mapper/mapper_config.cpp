@@ -159,6 +159,24 @@ Field interpolation(Interpolation& field) {
             [&field](YAML::Emitter& out) { out << to_string(field); }};
 }
 
+/// deskew.mode: auto, on or off.
+Field deskew_mode(DeskewMode& field) {
+    return {[&field](const YAML::Node& node, const std::string& key) {
+                const std::string v = scalar_text(node, key);
+                if (v == "auto") {
+                    field = DeskewMode::kAuto;
+                } else if (v == "on") {
+                    field = DeskewMode::kOn;
+                } else if (v == "off") {
+                    field = DeskewMode::kOff;
+                } else {
+                    throw ConfigError("key '" + key + "': expected 'auto', 'on' or 'off', got '" +
+                                      v + "'");
+                }
+            },
+            [&field](YAML::Emitter& out) { out << to_string(field); }};
+}
+
 constexpr double kInf = 1e300;
 
 using Section = std::vector<std::pair<std::string, Field>>;
@@ -236,6 +254,9 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"sdf_coarse_kernel_scale_m", number(c.odometry.sdf_coarse_kernel_scale_m, 0.0, 100.0)},
           {"max_condition_number", number(c.odometry.max_condition_number, 1.0, 1e30)},
           {"min_scan_points", number(c.odometry.min_scan_points, 0, 100000000)}}},
+        {"deskew",
+         {{"mode", deskew_mode(c.deskew.mode)},
+          {"scan_period_s", number(c.deskew.scan_period_s, 1e-4, 1e4)}}},
         {"bake",
          {{"voxel_size_m", number(c.bake.voxel_size_m, 0.0, 100.0)},
           {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)},

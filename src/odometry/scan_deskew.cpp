@@ -18,6 +18,39 @@ Eigen::Isometry3d sensor_pose_at(const Eigen::Isometry3d& T_prev_cur, double int
     return se3_exp((time_s / interval_s) * se3_log(T_prev_cur));
 }
 
+namespace {
+
+void check_interval(double interval_s) {
+    if (!(interval_s > 0.0)) {
+        throw ConfigError("deskew: the interval between scans must be positive (got " +
+                          std::to_string(interval_s) + " s)");
+    }
+}
+
+/// Each point moved by exp(t_i * velocity), velocity_before for t_i < 0, velocity_after else.
+std::vector<Eigen::Vector3f> move_points(const std::vector<Eigen::Vector3f>& points_sensor,
+                                         const std::vector<double>& times_s,
+                                         const Vector6d& velocity_before,
+                                         const Vector6d& velocity_after) {
+    if (points_sensor.size() != times_s.size()) {
+        throw DataError("deskew: " + std::to_string(points_sensor.size()) + " points but " +
+                        std::to_string(times_s.size()) + " point times; give one time per point");
+    }
+    std::vector<Eigen::Vector3f> out(points_sensor.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_sensor.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                              const Vector6d& velocity =
+                                  times_s[i] < 0.0 ? velocity_before : velocity_after;
+                              const Eigen::Isometry3d T_ref_t = se3_exp(times_s[i] * velocity);
+                              out[i] = (T_ref_t * points_sensor[i].cast<double>()).cast<float>();
+                          }
+                      });
+    return out;
+}
+
+}  // namespace
+
 std::vector<Eigen::Vector3f> deskew_scan(const std::vector<Eigen::Vector3f>& points_sensor,
                                          const std::vector<double>& times_s,
                                          const Eigen::Isometry3d& T_prev_cur, double interval_s) {
@@ -25,20 +58,21 @@ std::vector<Eigen::Vector3f> deskew_scan(const std::vector<Eigen::Vector3f>& poi
         throw DataError("deskew: " + std::to_string(points_sensor.size()) + " points but " +
                         std::to_string(times_s.size()) + " point times; give one time per point");
     }
-    if (!(interval_s > 0.0)) {
-        throw ConfigError("deskew: the interval between scans must be positive (got " +
-                          std::to_string(interval_s) + " s)");
-    }
+    check_interval(interval_s);
     const Vector6d velocity = se3_log(T_prev_cur) / interval_s;  // body twist per second
-    std::vector<Eigen::Vector3f> out(points_sensor.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_sensor.size(), 1024),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                              const Eigen::Isometry3d T_ref_t = se3_exp(times_s[i] * velocity);
-                              out[i] = (T_ref_t * points_sensor[i].cast<double>()).cast<float>();
-                          }
-                      });
-    return out;
+    return move_points(points_sensor, times_s, velocity, velocity);
+}
+
+std::vector<Eigen::Vector3f> deskew_scan_between(const std::vector<Eigen::Vector3f>& points_sensor,
+                                                 const std::vector<double>& times_s,
+                                                 const Eigen::Isometry3d& T_prev_cur,
+                                                 double interval_prev_s,
+                                                 const Eigen::Isometry3d& T_cur_next,
+                                                 double interval_next_s) {
+    check_interval(interval_prev_s);
+    check_interval(interval_next_s);
+    return move_points(points_sensor, times_s, se3_log(T_prev_cur) / interval_prev_s,
+                       se3_log(T_cur_next) / interval_next_s);
 }
 
 }  // namespace shine

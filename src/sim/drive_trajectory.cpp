@@ -28,6 +28,49 @@ void validate(const DriveTrajectoryConfig& c) {
             c.roll_amplitude_deg, "must be in [0, 10]");
 }
 
+namespace {
+
+/// The phases of the weave and the body oscillations, drawn from the seed.
+struct DrivePhases {
+    double weave = 0.0;
+    double pitch = 0.0;
+    double roll = 0.0;
+};
+
+DrivePhases drive_phases(std::uint64_t seed) {
+    random_internal::Rng rng(random_internal::derive_seed(seed, 0x7472616a));
+    DrivePhases phases;
+    phases.weave = rng.uniform(0.0, 2.0 * M_PI);
+    phases.pitch = rng.uniform(0.0, 2.0 * M_PI);
+    phases.roll = rng.uniform(0.0, 2.0 * M_PI);
+    return phases;
+}
+
+Eigen::Isometry3d pose_at(const DriveTrajectoryConfig& config, const DrivePhases& phases,
+                          double x) {
+    // Body oscillations on shorter, incommensurate wavelengths than the weave.
+    constexpr double kPitchWavelength_m = 17.0;
+    constexpr double kRollWavelength_m = 11.0;
+    constexpr double kDegToRad = M_PI / 180.0;
+    const double k = 2.0 * M_PI / config.weave_wavelength_m;
+    const double y = config.weave_amplitude_m * std::sin(k * x + phases.weave);
+    const double dy_dx = config.weave_amplitude_m * k * std::cos(k * x + phases.weave);
+    const double yaw = std::atan(dy_dx);  // heading follows the path tangent
+    const double pitch = config.pitch_amplitude_deg * kDegToRad *
+                         std::sin(2.0 * M_PI * x / kPitchWavelength_m + phases.pitch);
+    const double roll = config.roll_amplitude_deg * kDegToRad *
+                        std::sin(2.0 * M_PI * x / kRollWavelength_m + phases.roll);
+    Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
+    T_world_sensor.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                                  .toRotationMatrix();
+    T_world_sensor.translation() = Eigen::Vector3d(x, y, config.sensor_height_m);
+    return T_world_sensor;
+}
+
+}  // namespace
+
 std::vector<Eigen::Isometry3d> make_drive_trajectory(const DriveTrajectoryConfig& config,
                                                      int num_frames, std::uint64_t seed) {
     validate(config);
@@ -35,36 +78,19 @@ std::vector<Eigen::Isometry3d> make_drive_trajectory(const DriveTrajectoryConfig
         throw ConfigError("trajectory: num_frames = " + std::to_string(num_frames) +
                           " must be >= 1");
     }
-    random_internal::Rng rng(random_internal::derive_seed(seed, 0x7472616a));
-    const double weave_phase = rng.uniform(0.0, 2.0 * M_PI);
-    const double pitch_phase = rng.uniform(0.0, 2.0 * M_PI);
-    const double roll_phase = rng.uniform(0.0, 2.0 * M_PI);
-    // Body oscillations on shorter, incommensurate wavelengths than the weave.
-    constexpr double kPitchWavelength_m = 17.0;
-    constexpr double kRollWavelength_m = 11.0;
-    constexpr double kDegToRad = M_PI / 180.0;
-    const double k = 2.0 * M_PI / config.weave_wavelength_m;
-
+    const DrivePhases phases = drive_phases(seed);
     std::vector<Eigen::Isometry3d> poses;
     poses.reserve(num_frames);
     for (int i = 0; i < num_frames; ++i) {
-        const double x = i * config.frame_spacing_m;
-        const double y = config.weave_amplitude_m * std::sin(k * x + weave_phase);
-        const double dy_dx = config.weave_amplitude_m * k * std::cos(k * x + weave_phase);
-        const double yaw = std::atan(dy_dx);  // heading follows the path tangent
-        const double pitch = config.pitch_amplitude_deg * kDegToRad *
-                             std::sin(2.0 * M_PI * x / kPitchWavelength_m + pitch_phase);
-        const double roll = config.roll_amplitude_deg * kDegToRad *
-                            std::sin(2.0 * M_PI * x / kRollWavelength_m + roll_phase);
-        Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
-        T_world_sensor.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-                                   Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                                   Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-                                      .toRotationMatrix();
-        T_world_sensor.translation() = Eigen::Vector3d(x, y, config.sensor_height_m);
-        poses.push_back(T_world_sensor);
+        poses.push_back(pose_at(config, phases, i * config.frame_spacing_m));
     }
     return poses;
+}
+
+Eigen::Isometry3d drive_pose_at(const DriveTrajectoryConfig& config, std::uint64_t seed,
+                                double x_m) {
+    validate(config);
+    return pose_at(config, drive_phases(seed), x_m);
 }
 
 }  // namespace shine::sim

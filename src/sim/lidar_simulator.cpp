@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <type_traits>
@@ -48,10 +49,13 @@ RayHit cast_ray(const Caster& caster, const Eigen::Vector3d& origin_world,
 /// Casts the rays of one scan against `caster` (a RayCaster, a BlockSelection or a MovingScene),
 /// in parallel; the range noise of ray i is drawn from a generator seeded by (noise_seed, i). The
 /// ray at azimuth step j is cast at time scan_time_s + sweep_s * j / azimuth_steps.
+/// With `step_poses` (one per azimuth step) the ray of step j leaves from step_poses[j] and the
+/// scan's points get their times (sweep_s * j / azimuth_steps).
 template <class Caster>
 LidarScan cast_scan(const Caster& caster, const LidarConfig& config,
                     const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed,
-                    double scan_time_s = 0.0, double sweep_s = 0.0) {
+                    double scan_time_s = 0.0, double sweep_s = 0.0,
+                    const std::vector<Eigen::Isometry3d>* step_poses = nullptr) {
     const std::size_t num_rays =
         static_cast<std::size_t>(config.num_beams) * static_cast<std::size_t>(config.azimuth_steps);
     std::vector<double> ranges(num_rays, -1.0);
@@ -65,10 +69,13 @@ LidarScan cast_scan(const Caster& caster, const LidarConfig& config,
                               const int beam = static_cast<int>(ray / config.azimuth_steps);
                               const int step = static_cast<int>(ray % config.azimuth_steps);
                               const Eigen::Vector3d direction_world =
-                                  R_world_sensor * lidar_ray_direction(config, beam, step);
+                                  (step_poses ? (*step_poses)[step].linear() : R_world_sensor) *
+                                  lidar_ray_direction(config, beam, step);
+                              const Eigen::Vector3d& ray_origin_world =
+                                  step_poses ? (*step_poses)[step].translation() : origin_world;
                               const double time_s =
                                   scan_time_s + sweep_s * step / config.azimuth_steps;
-                              const RayHit hit = cast_ray(caster, origin_world, direction_world,
+                              const RayHit hit = cast_ray(caster, ray_origin_world, direction_world,
                                                           config.max_range_m, time_s);
                               if (!hit.hit() || hit.distance_m < config.min_range_m) continue;
                               double r = hit.distance_m;
@@ -93,8 +100,19 @@ LidarScan cast_scan(const Caster& caster, const LidarConfig& config,
         scan.points_sensor.push_back(
             (lidar_ray_direction(config, beam, step) * ranges[ray]).cast<float>());
         scan.triangle_ids.push_back(ids[ray]);
+        if (step_poses) scan.point_time_s.push_back(sweep_s * step / config.azimuth_steps);
     }
     return scan;
+}
+
+void check_motion(const LidarConfig& config, const SweepMotion& motion) {
+    if (motion.T_world_sensor.size() != static_cast<std::size_t>(config.azimuth_steps) ||
+        !(motion.sweep_s >= 0.0)) {
+        throw ConfigError("lidar: a sweep with motion needs one sensor pose per azimuth step (" +
+                          std::to_string(config.azimuth_steps) + "), got " +
+                          std::to_string(motion.T_world_sensor.size()) +
+                          ", and a non-negative sweep time");
+    }
 }
 
 }  // namespace lidar_internal
@@ -163,6 +181,22 @@ LidarScan simulate_scan(const MovingScene& scene, const LidarConfig& config,
                      scene.tracks().sweep_s);
 }
 
+LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
+                        const SweepMotion& motion, std::uint64_t noise_seed) {
+    validate(config);
+    check_motion(config, motion);
+    return cast_scan(caster, config, motion.T_world_sensor.front(), noise_seed, 0.0, motion.sweep_s,
+                     &motion.T_world_sensor);
+}
+
+LidarScan simulate_scan(const MovingScene& scene, const LidarConfig& config,
+                        const SweepMotion& motion, std::uint64_t noise_seed, double scan_time_s) {
+    validate(config);
+    check_motion(config, motion);
+    return cast_scan(scene, config, motion.T_world_sensor.front(), noise_seed, scan_time_s,
+                     motion.sweep_s, &motion.T_world_sensor);
+}
+
 void validate(const SimulationConfig& config) {
     if (config.num_frames < 1 || config.num_frames > 100000) {
         throw ConfigError("simulation: num_frames = " + std::to_string(config.num_frames) +
@@ -201,9 +235,33 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
         config.trajectory, config.num_frames, derive_seed(config.seed, kTrajectory));
 
     const fs::path velodyne_dir = out_dir / "velodyne";
-    ensure_directory(velodyne_dir);
-    // Remove scans of an earlier, longer run so that scans and poses.txt stay consistent.
-    sequence_internal::remove_stale_scans(velodyne_dir, config.num_frames);
+    // Remove scans of an earlier, longer run so that scans and poses.txt stay consistent. With
+    // motion distortion the scans are scans/NNNNNN.ply: velodyne/ must hold none (a reader takes
+    // velodyne/ first).
+    std::function<SweepMotion(int)> sweep_motion;
+    if (config.motion_distortion) {
+        ensure_directory(out_dir / "scans");
+        sequence_internal::remove_stale_scans(out_dir / "scans", config.num_frames, "ply");
+        sequence_internal::remove_stale_scans(velodyne_dir, 0);
+        const std::uint64_t trajectory_seed = derive_seed(config.seed, kTrajectory);
+        sweep_motion = [&config, trajectory_seed](int frame) {
+            SweepMotion motion;
+            motion.sweep_s = config.movers.sweep_s;
+            const int steps = config.lidar.azimuth_steps;
+            motion.T_world_sensor.reserve(static_cast<std::size_t>(steps));
+            for (int j = 0; j < steps; ++j) {
+                const double t_s = motion.sweep_s * j / steps;
+                const double frames = frame + t_s / config.movers.frame_period_s;
+                motion.T_world_sensor.push_back(
+                    drive_pose_at(config.trajectory, trajectory_seed,
+                                  frames * config.trajectory.frame_spacing_m));
+            }
+            return motion;
+        };
+    } else {
+        ensure_directory(velodyne_dir);
+        sequence_internal::remove_stale_scans(velodyne_dir, config.num_frames);
+    }
 
     SimulationSummary summary;
     summary.num_frames = config.num_frames;
@@ -219,11 +277,11 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
         const MovingScene moving(caster, movers);
         sequence_internal::simulate_and_write_scans(
             moving, config.lidar, poses, noise_seed, config.origin_offset_world_m,
-            config.show_progress, out_dir, scene.mesh, summary);
+            config.show_progress, out_dir, scene.mesh, summary, sweep_motion);
     } else {
         sequence_internal::simulate_and_write_scans(
             caster, config.lidar, poses, noise_seed, config.origin_offset_world_m,
-            config.show_progress, out_dir, scene.mesh, summary);
+            config.show_progress, out_dir, scene.mesh, summary, sweep_motion);
     }
     write_ply_mesh(out_dir / "gt_mesh.ply", scene.mesh);
 
@@ -232,8 +290,9 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
     const auto& t = config.trajectory;
     const auto& s = scene_config;
     std::ostringstream json;
-    sequence_internal::write_simulation_json_head(
-        json, "shine simulate", config.seed, config.num_frames, config.origin_offset_world_m, l, t);
+    sequence_internal::write_simulation_json_head(json, "shine simulate", config.seed,
+                                                  config.num_frames, config.origin_offset_world_m,
+                                                  l, t, config.motion_distortion);
     json << "  \"scene\": {\"start_x_m\": " << json_number(s.start_x_m)
          << ", \"length_m\": " << json_number(s.length_m)
          << ", \"road_width_m\": " << json_number(s.road_width_m)
@@ -242,9 +301,16 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
          << ", \"lot_depth_m\": " << json_number(s.lot_depth_m)
          << ", \"max_edge_length_m\": " << json_number(s.max_edge_length_m) << ",\n"
          << "            \"objects\": {";
-    sequence_internal::write_simulation_json_tail(
-        json, scene, summary,
-        movers.movers.empty() ? "" : "  \"movers\": " + mover_tracks_to_json(movers) + ",\n");
+    std::string extra =
+        movers.movers.empty() ? "" : "  \"movers\": " + mover_tracks_to_json(movers) + ",\n";
+    if (config.motion_distortion) {
+        extra += "  \"motion_distortion\": {\"frame_period_s\": " +
+                 json_number(config.movers.frame_period_s) +
+                 ", \"sweep_s\": " + json_number(config.movers.sweep_s) + ", \"speed_m_s\": " +
+                 json_number(t.frame_spacing_m / config.movers.frame_period_s) +
+                 ", \"point_time\": \"t, seconds after the scan's pose (the sweep's start)\"},\n";
+    }
+    sequence_internal::write_simulation_json_tail(json, scene, summary, extra);
     write_stream_atomically(out_dir / "simulation.json",
                             [&](std::ostream& out) { out << json.str(); });
     write_stream_atomically(out_dir / "README.txt", [&](std::ostream& out) {
@@ -267,7 +333,16 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
                 << " s by azimuth.\ngt_mesh.ply holds the static scene only; points on movers "
                    "are in the scans.\n\n";
         }
-        sequence_internal::write_readme_file_list(out, summary.num_observed_triangles);
+        if (config.motion_distortion) {
+            out << "Motion distortion: the sensor keeps moving during each "
+                << config.movers.sweep_s << " s sweep at "
+                << t.frame_spacing_m / config.movers.frame_period_s
+                << " m/s; scan k's pose is the sweep's start (k * " << config.movers.frame_period_s
+                << " s) and each point\ncarries t, the seconds after it at which its ray was "
+                   "fired; its coordinates are in the sensor frame at that time.\n\n";
+        }
+        sequence_internal::write_readme_file_list(out, summary.num_observed_triangles,
+                                                  config.motion_distortion);
     });
     summary.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <ostream>
 #include <regex>
 #include <string>
@@ -18,6 +19,7 @@
 #include "shine/core/progress.hpp"
 #include "shine/geometry/triangle_mesh.hpp"
 #include "shine/io/kitti.hpp"
+#include "shine/io/ply.hpp"
 #include "shine/sim/drive_trajectory.hpp"
 #include "shine/sim/lidar_simulator.hpp"
 #include "shine/sim/street_scene.hpp"
@@ -45,11 +47,21 @@ inline std::string format_frame(int frame) {
     return buffer;
 }
 
-/// Removes velodyne_dir/NNNNNN.bin files with NNNNNN >= num_frames (from an earlier, longer run)
-/// so that scans and poses.txt stay consistent. Throws IoError naming a file it cannot remove.
-inline void remove_stale_scans(const std::filesystem::path& velodyne_dir, int num_frames) {
+/// File name of a timed scan in scans/: NNNNNN.ply.
+inline std::string format_timed_frame(int frame) {
+    char buffer[32];
+    std::snprintf(buffer, sizeof(buffer), "%06d.ply", frame);
+    return buffer;
+}
+
+/// Removes velodyne_dir/NNNNNN.bin files (NNNNNN.`extension`) with NNNNNN >= num_frames (from an
+/// earlier, longer run) so that scans and poses.txt stay consistent. Throws IoError naming a file
+/// it cannot remove.
+inline void remove_stale_scans(const std::filesystem::path& velodyne_dir, int num_frames,
+                               const std::string& extension = "bin") {
     namespace fs = std::filesystem;
-    const std::regex scan_name(R"(\d{6}\.bin)");
+    if (!fs::is_directory(velodyne_dir)) return;
+    const std::regex scan_name(R"(\d{6}\.)" + extension);
     std::error_code ec;
     for (const auto& entry : fs::directory_iterator(velodyne_dir)) {
         const std::string name = entry.path().filename().string();
@@ -89,7 +101,7 @@ inline void write_simulation_json_tail(std::ostream& json, const StreetScene& sc
 inline void write_simulation_json_opening(std::ostream& json, const char* generator,
                                           std::uint64_t seed, int num_frames,
                                           const Eigen::Vector3d& origin_offset_world_m,
-                                          const LidarConfig& l) {
+                                          const LidarConfig& l, bool timed_scans = false) {
     json << "{\n"
          << "  \"generator\": \"" << generator << "\",\n"
          << "  \"seed\": " << seed << ",\n"
@@ -97,8 +109,11 @@ inline void write_simulation_json_opening(std::ostream& json, const char* genera
          << "  \"origin_offset_world_m\": [" << json_number_exact(origin_offset_world_m.x()) << ", "
          << json_number_exact(origin_offset_world_m.y()) << ", "
          << json_number_exact(origin_offset_world_m.z()) << "],\n"
-         << "  \"frames\": {\"points\": \"velodyne/NNNNNN.bin, float32 x y z intensity(0), "
-            "sensor frame\", \"poses\": \"poses.txt, T_world_sensor, KITTI 3x4 row-major\", "
+         << "  \"frames\": {\"points\": \""
+         << (timed_scans ? "scans/NNNNNN.ply, float32 x y z t (s after the scan's pose), sensor "
+                           "frame at each point's time"
+                         : "velodyne/NNNNNN.bin, float32 x y z intensity(0), sensor frame")
+         << "\", \"poses\": \"poses.txt, T_world_sensor, KITTI 3x4 row-major\", "
             "\"reference\": \"gt_mesh.ply, world frame, face property observed\"},\n"
          << "  \"lidar\": {\"num_beams\": " << l.num_beams
          << ", \"elevation_max_deg\": " << json_number(l.elevation_max_deg)
@@ -117,8 +132,10 @@ inline void write_simulation_json_opening(std::ostream& json, const char* genera
 inline void write_simulation_json_head(std::ostream& json, const char* generator,
                                        std::uint64_t seed, int num_frames,
                                        const Eigen::Vector3d& origin_offset_world_m,
-                                       const LidarConfig& l, const DriveTrajectoryConfig& t) {
-    write_simulation_json_opening(json, generator, seed, num_frames, origin_offset_world_m, l);
+                                       const LidarConfig& l, const DriveTrajectoryConfig& t,
+                                       bool timed_scans = false) {
+    write_simulation_json_opening(json, generator, seed, num_frames, origin_offset_world_m, l,
+                                  timed_scans);
     json << "  \"trajectory\": {\"frame_spacing_m\": " << json_number(t.frame_spacing_m)
          << ", \"sensor_height_m\": " << json_number(t.sensor_height_m)
          << ", \"weave_amplitude_m\": " << json_number(t.weave_amplitude_m)
@@ -128,8 +145,12 @@ inline void write_simulation_json_head(std::ostream& json, const char* generator
 }
 
 /// The file list of a simulated sequence's README.txt.
-inline void write_readme_file_list(std::ostream& out, std::size_t num_observed_triangles) {
-    out << "velodyne/NNNNNN.bin  float32 x y z intensity (0) per point, sensor frame\n"
+inline void write_readme_file_list(std::ostream& out, std::size_t num_observed_triangles,
+                                   bool timed_scans = false) {
+    out << (timed_scans ? "scans/NNNNNN.ply     float32 x y z t per point, sensor frame at time t "
+                          "(s after the scan's pose)\n"
+                        : "velodyne/NNNNNN.bin  float32 x y z intensity (0) per point, sensor "
+                          "frame\n")
         << "poses.txt            T_world_sensor per frame, 12 numbers (3x4 row-major)\n"
         << "gt_mesh.ply          reference mesh in the world frame; face property "
            "`observed` = 1\n"
@@ -143,12 +164,17 @@ inline void write_readme_file_list(std::ostream& out, std::size_t num_observed_t
 /// scan's noise with noise_seed(frame), and writes it to velodyne_dir/NNNNNN.bin as it is made;
 /// then writes out_dir/poses.txt (poses moved by origin_offset_world_m). Marks the triangles the
 /// scans hit in mesh.face_observed, sets mesh.origin_world_m and fills summary's point counts.
+///
+/// With `sweep_motion` (the sensor's poses during scan k's sweep: motion distortion) the rays
+/// leave from those poses and the scans, whose points carry times, are written to
+/// out_dir/scans/NNNNNN.ply (write_ply_scan) instead.
 template <class Caster, class NoiseSeed>
 void simulate_and_write_scans(const Caster& caster, const LidarConfig& lidar,
                               const std::vector<Eigen::Isometry3d>& poses, NoiseSeed noise_seed,
                               const Eigen::Vector3d& origin_offset_world_m, bool show_progress,
                               const std::filesystem::path& out_dir, TriangleMesh& mesh,
-                              SimulationSummary& summary) {
+                              SimulationSummary& summary,
+                              const std::function<SweepMotion(int frame)>& sweep_motion = {}) {
     const std::filesystem::path velodyne_dir = out_dir / "velodyne";
     const int num_frames = static_cast<int>(poses.size());
     summary.min_points_per_scan = static_cast<std::size_t>(-1);
@@ -156,13 +182,27 @@ void simulate_and_write_scans(const Caster& caster, const LidarConfig& lidar,
     Progress progress("simulate", static_cast<std::size_t>(num_frames), show_progress);
     for (int frame = 0; frame < num_frames; ++frame) {
         LidarScan scan;
-        if constexpr (std::is_same_v<Caster, MovingScene>) {
-            scan = simulate_scan(caster, lidar, poses[frame], noise_seed(frame),
-                                 frame * caster.tracks().frame_period_s);
+        if (sweep_motion) {
+            const SweepMotion motion = sweep_motion(frame);
+            if constexpr (std::is_same_v<Caster, MovingScene>) {
+                scan = simulate_scan(caster, lidar, motion, noise_seed(frame),
+                                     frame * caster.tracks().frame_period_s);
+            } else if constexpr (std::is_same_v<Caster, RayCaster>) {
+                scan = simulate_scan(caster, lidar, motion, noise_seed(frame));
+            } else {
+                throw ConfigError("motion distortion is simulated on the street only");
+            }
+            write_ply_scan(out_dir / "scans" / format_timed_frame(frame), scan.points_sensor,
+                           scan.point_time_s);
         } else {
-            scan = simulate_scan(caster, lidar, poses[frame], noise_seed(frame));
+            if constexpr (std::is_same_v<Caster, MovingScene>) {
+                scan = simulate_scan(caster, lidar, poses[frame], noise_seed(frame),
+                                     frame * caster.tracks().frame_period_s);
+            } else {
+                scan = simulate_scan(caster, lidar, poses[frame], noise_seed(frame));
+            }
+            write_kitti_bin(velodyne_dir / format_frame(frame), scan.points_sensor);
         }
-        write_kitti_bin(velodyne_dir / format_frame(frame), scan.points_sensor);
         // Ids past the static mesh are movers (MovingScene::cast): not part of the reference.
         for (const std::int32_t id : scan.triangle_ids) {
             if (static_cast<std::size_t>(id) < observed.size()) observed[id] = 1;

@@ -3,8 +3,11 @@
 
 #include <Eigen/Core>
 #include <filesystem>
+#include <optional>
 #include <string_view>
 #include <vector>
+
+#include "shine/io/point_times.hpp"
 
 namespace shine {
 
@@ -19,6 +22,17 @@ std::vector<Eigen::Vector3f> read_pcd_points(const std::filesystem::path& path);
 /// read_pcd_points on bytes already in memory; `source` names them in messages.
 std::vector<Eigen::Vector3f> parse_pcd_points(std::string_view data,
                                               const std::filesystem::path& source);
+
+/// Reads a PCD scan: the points as read_pcd_points, and the per-point times of the first field
+/// named t, time, timestamp or offset_time with COUNT 1 (any TYPE and SIZE; unit and reference by
+/// point_times.hpp's rules, `stamp_s` the scan's stamp when it has one). Without such a field
+/// point_time_s is empty. Throws IoError as read_pcd_points.
+TimedPoints read_pcd_scan(const std::filesystem::path& path,
+                          std::optional<double> stamp_s = std::nullopt);
+
+/// read_pcd_scan on bytes already in memory; `source` names them in messages.
+TimedPoints parse_pcd_scan(std::string_view data, const std::filesystem::path& source,
+                           std::optional<double> stamp_s = std::nullopt);
 
 /// Writes x y z as a binary PCD atomically.
 void write_pcd_points(const std::filesystem::path& path,

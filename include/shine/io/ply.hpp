@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "shine/geometry/triangle_mesh.hpp"
+#include "shine/io/point_times.hpp"
 
 namespace shine {
 
@@ -85,8 +86,25 @@ std::vector<Eigen::Vector3f> read_ply_points(const std::filesystem::path& path);
 std::vector<Eigen::Vector3f> parse_ply_points(std::string_view data,
                                               const std::filesystem::path& source);
 
+/// Reads a PLY scan: the vertex positions as read_ply_points, and the per-point times of the
+/// vertex element's first property named t, time, timestamp or offset_time (any scalar type;
+/// unit and reference by point_times.hpp's rules, `stamp_s` the scan's stamp when it has one).
+/// Without such a property point_time_s is empty. Throws IoError as read_ply_mesh.
+TimedPoints read_ply_scan(const std::filesystem::path& path,
+                          std::optional<double> stamp_s = std::nullopt);
+
+/// read_ply_scan on bytes already in memory; `source` names them in messages.
+TimedPoints parse_ply_scan(std::string_view data, const std::filesystem::path& source,
+                           std::optional<double> stamp_s = std::nullopt);
+
 /// Writes points as a binary little-endian PLY point cloud, atomically.
 void write_ply_points(const std::filesystem::path& path,
                       const std::vector<Eigen::Vector3f>& points);
+
+/// Writes a scan with per-point times as a binary little-endian PLY, atomically: float x y z and
+/// float `t`, seconds relative to the scan's pose (what read_ply_scan reads back). Throws
+/// DataError if the counts differ.
+void write_ply_scan(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points,
+                    const std::vector<double>& point_time_s);
 
 }  // namespace shine

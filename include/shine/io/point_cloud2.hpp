@@ -2,14 +2,14 @@
 // the sensor frame and per-point times.
 //
 // Fields used: x y z (FLOAT32 or FLOAT64, required) and the first per-point time field found among
-// t, time, timestamp, offset_time (UINT32: nanoseconds; FLOAT32 or FLOAT64: seconds; another
-// datatype is a DataError).
-// Point times are returned relative to the header stamp: a time field whose values exceed 1e6 s
-// (11.6 days) is taken as absolute and the stamp is subtracted; smaller values are already
-// relative. Other fields (intensity, ring, ...) are skipped: Scan has no place for them. Organised
-// clouds (height > 1), padded point steps and padded rows are read; points are returned as stored,
-// NaN included (organised clouds pad with NaN), as the KITTI/PLY/PCD readers do: preprocess_scan
-// drops non-finite points. Big-endian point data is rejected.
+// t, time, timestamp, offset_time (point_times.hpp: integer datatypes are nanoseconds, FLOAT32 or
+// FLOAT64 seconds unless they span more than 10 s in one cloud; an unknown datatype is a
+// DataError). Point times are returned relative to the header stamp: values beyond 1e6 s (11.6
+// days) are absolute and the stamp is subtracted; smaller values are already relative. Other fields
+// (intensity, ring, ...) are skipped: Scan has no place for them. Organised clouds (height > 1),
+// padded point steps and padded rows are read; points are returned as stored, NaN included
+// (organised clouds pad with NaN), as the KITTI/PLY/PCD readers do: preprocess_scan drops
+// non-finite points. Big-endian point data is rejected.
 #pragma once
 
 #include <Eigen/Core>
@@ -17,6 +17,7 @@
 #include <string_view>
 #include <vector>
 
+#include "shine/io/point_times.hpp"
 #include "shine/io/recording.hpp"
 
 namespace shine {
@@ -28,7 +29,8 @@ struct PointCloud2Scan {
     std::vector<Eigen::Vector3f> points_sensor;
     /// Per-point time in seconds relative to stamp_s (empty without a time field).
     std::vector<double> point_time_s;
-    std::string time_field;  ///< the field the times came from ("" without one)
+    std::string time_field;       ///< the field the times came from ("" without one)
+    PointTimeFormat time_format;  ///< its type, unit and reference
 };
 
 /// Decodes one serialised PointCloud2. `where` names the message in errors ("ROS 1 bag 'a.bag',

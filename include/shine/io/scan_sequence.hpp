@@ -33,6 +33,8 @@
 #include <string>
 #include <vector>
 
+#include "shine/io/point_times.hpp"
+
 namespace shine {
 
 /// One scan: points in the sensor frame and the sensor's pose in the world frame.
@@ -42,9 +44,11 @@ struct Scan {
     std::filesystem::path source;
     /// Acquisition time of the scan in seconds (a recording's header stamp; 0 for files).
     double stamp_s = 0.0;
-    /// Per-point time in seconds relative to stamp_s, one per point of points_sensor; empty when
-    /// the scan carries no per-point time (KITTI, PLY, PCD, a PointCloud2 without a time field).
+    /// Per-point time in seconds relative to the scan's pose (stamp_s for recordings), one per
+    /// point of points_sensor; empty when the scan carries no per-point time (KITTI .bin, a PLY,
+    /// PCD or PointCloud2 without a t / time / timestamp / offset_time field; point_times.hpp).
     std::vector<double> point_time_s;
+    PointTimeFormat point_time_format;  ///< the field, unit and reference point_time_s came from
 };
 
 /// Whether a sequence must come with poses.
@@ -90,6 +94,12 @@ class ScanSequence {
     const std::filesystem::path& directory() const { return dir_; }
     /// Acquisition time of scan i in seconds (recordings: header stamp; files: 0).
     double stamp_s(std::size_t i) const { return stamps_s_.empty() ? 0.0 : stamps_s_.at(i); }
+    /// The position of scan i among all scans of the directory (a recording: among the topic's
+    /// messages) before frame selection and subset(): frame_number(b) - frame_number(a) scan
+    /// periods lie between scans a and b of a sequence without stamps.
+    std::size_t frame_number(std::size_t i) const {
+        return frame_numbers_.empty() ? i : frame_numbers_.at(i);
+    }
     /// Whether the scans come from a recording (bag / MCAP / SQLite) rather than files.
     bool from_recording() const { return recording_ != nullptr; }
     /// Reads scan i from disk (points as stored; filtering is preprocess_scan's job).
@@ -108,6 +118,7 @@ class ScanSequence {
     std::vector<std::filesystem::path> scan_paths_;
     std::vector<Eigen::Isometry3d> poses_;
     bool has_poses_ = true;
+    std::vector<std::size_t> frame_numbers_;     ///< see frame_number()
     std::vector<double> stamps_s_;               ///< recordings only
     std::shared_ptr<RecordingState> recording_;  ///< recordings only
     /// Recordings only, after subset(): scan i is the recording's selected message

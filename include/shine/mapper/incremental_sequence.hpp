@@ -21,6 +21,7 @@
 #include "shine/mapper/incremental_mapper.hpp"
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/scan_odometry.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
 
 namespace shine {
 
@@ -43,11 +44,14 @@ struct IncrementalSequenceMap {
     /// Per scan: load, preprocess, allocate, normals, sample, train, importance; bake and mesh of
     /// the final products once (progress meshes are not counted).
     StageProfile profile;
+    DeskewStats deskew;  ///< what deskewing did (config.deskew, sequence_deskew.hpp)
 };
 
 /// Maps every scan of `sequence` in incremental mode with `config` (finalized here) and writes the
 /// products into `out_dir` (created if missing), plus the progress meshes every
-/// config.incremental.mesh_every frames. Progress lines are labelled "map", followed by
+/// config.incremental.mesh_every frames. Scans with per-point times are deskewed when
+/// deskew_active(config.deskew, config.odometry.estimate_poses): with the sequence's poses, or
+/// with the estimated motion (sequence_deskew.hpp). Progress lines are labelled "map", followed by
 /// `progress_tag` when it is not empty. Throws what the steps throw (IoError, DataError naming
 /// the scan, ConfigError).
 ///

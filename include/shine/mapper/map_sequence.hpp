@@ -21,6 +21,7 @@
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
 #include "shine/mapper/stage_profile.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/neural_sdf.hpp"
@@ -43,6 +44,7 @@ struct SequenceMap {
     std::unique_ptr<BatchMapper> mapper;
     MapProducts products;
     StageProfile profile;  ///< per scan: load, preprocess, allocate; the rest once per run
+    DeskewStats deskew;    ///< what deskewing did (config.deskew, sequence_deskew.hpp)
 };
 
 /// The bake and mesh stages of `products` in profile form.
@@ -64,7 +66,9 @@ MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
                                const std::filesystem::path& out_dir);
 
 /// Maps every scan of `sequence` in batch mode with `config` (finalized here) and writes the
-/// products into `out_dir` (created if missing). Progress lines are labelled "load" and "train",
+/// products into `out_dir` (created if missing). Scans with per-point times are deskewed with the
+/// sequence's poses when deskew_active(config.deskew, config.odometry.estimate_poses)
+/// (sequence_deskew.hpp). Progress lines are labelled "load" and "train",
 /// followed by `progress_tag` when it is not empty. Throws what the steps throw (IoError,
 /// DataError naming the scan, ConfigError).
 ///

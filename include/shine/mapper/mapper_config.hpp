@@ -27,6 +27,7 @@
 #include "shine/map/feature_octree.hpp"
 #include "shine/mapper/incremental_config.hpp"
 #include "shine/mapper/odometry_config.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/decoder.hpp"
@@ -72,6 +73,7 @@ struct MapperConfig {
     float final_learning_rate_ratio = 0.1f;
     IncrementalConfig incremental;  ///< `shine map --mode incremental`
     OdometryConfig odometry;        ///< poses estimated while mapping (incremental mode)
+    DeskewConfig deskew;            ///< scans with per-point times (`shine map --deskew`)
     BakeConfig bake;
     MeshConfig mesh;
     /// Memory budget of the map (features + structure + decoder, MB = 10^6 bytes), checked after

@@ -27,4 +27,10 @@ void validate(const DriveTrajectoryConfig& config);
 std::vector<Eigen::Isometry3d> make_drive_trajectory(const DriveTrajectoryConfig& config,
                                                      int num_frames, std::uint64_t seed);
 
+/// The pose of the same drive at distance `x_m` along +x (frame i of make_drive_trajectory with
+/// the same config and seed is x_m = i * frame_spacing_m, bit for bit): where the sensor is
+/// between frames, for scans taken while driving (motion distortion).
+Eigen::Isometry3d drive_pose_at(const DriveTrajectoryConfig& config, std::uint64_t seed,
+                                double x_m);
+
 }  // namespace shine::sim

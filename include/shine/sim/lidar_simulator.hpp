@@ -47,6 +47,16 @@ struct LidarScan {
     std::vector<std::int32_t> triangle_ids;  ///< the triangle each point's ray hit (with a
                                              ///< MovingScene: >= num_static_triangles() for a
                                              ///< mover, see MovingScene::cast)
+    /// With a SweepMotion: each point's time, seconds after the scan's pose (empty otherwise).
+    std::vector<double> point_time_s;
+};
+
+/// The sensor moving during one sweep (motion distortion): the ray at azimuth step j is fired at
+/// sweep_s * j / azimuth_steps seconds after the scan's pose, from T_world_sensor[j], and its
+/// point is measured in that sensor frame -- as a spinning LiDAR on a moving car measures.
+struct SweepMotion {
+    std::vector<Eigen::Isometry3d> T_world_sensor;  ///< one per azimuth step
+    double sweep_s = 0.1;
 };
 
 /// Casts all rays of one scan from pose T_world_sensor, in parallel. The range noise of ray i is
@@ -67,6 +77,15 @@ LidarScan simulate_scan(const MovingScene& scene, const LidarConfig& config,
                         const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed,
                         double scan_time_s);
 
+/// Same with the sensor moving during the sweep (SweepMotion; the scan's points carry their
+/// times). Throws ConfigError if `motion` has not one pose per azimuth step.
+LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
+                        const SweepMotion& motion, std::uint64_t noise_seed);
+
+/// Same against a static scene with movers, the sweep starting at scan_time_s.
+LidarScan simulate_scan(const MovingScene& scene, const LidarConfig& config,
+                        const SweepMotion& motion, std::uint64_t noise_seed, double scan_time_s);
+
 /// Everything `shine simulate` does.
 struct SimulationConfig {
     std::uint64_t seed = 1;  ///< scene layout, trajectory phases and noise all derive from it
@@ -81,6 +100,13 @@ struct SimulationConfig {
     /// reference mesh's origin_world_m (e.g. (500000, 5000000, 0) for UTM-like coordinates). The
     /// scans (sensor frame) do not change with it.
     Eigen::Vector3d origin_offset_world_m = Eigen::Vector3d::Zero();
+    /// The sensor keeps moving during each sweep (`shine simulate --motion-distortion`): scan k's
+    /// pose is the drive's at k * frame_spacing_m as always, and the ray fired t seconds later
+    /// (t in [0, movers.sweep_s), by azimuth) leaves from the drive's pose t /
+    /// movers.frame_period_s frames further on (speed = frame_spacing_m / frame_period_s: 10 m/s at
+    /// the defaults). Each point carries t, so the scans are written as scans/NNNNNN.ply (float x y
+    /// z t) instead of velodyne/NNNNNN.bin.
+    bool motion_distortion = false;
     bool show_progress = true;
 };
 
@@ -108,7 +134,9 @@ struct SimulationSummary {
 /// With movers.num_movers > 0, the scans also see the movers (street_movers.hpp), scan k at time
 /// k * frame_period_s; gt_mesh.ply stays the static scene (observed = hit by a ray before any
 /// mover) and simulation.json gains "movers" (io/mover_tracks.hpp). Without movers the files are
-/// byte-identical to a simulation that knows nothing of them.
+/// byte-identical to a simulation that knows nothing of them. With motion_distortion the scans are
+/// out_dir/scans/NNNNNN.ply (float x y z t, t in seconds after the scan's pose) and velodyne/ is
+/// emptied of scans; without it every file is the same as before that option existed.
 /// Stale velodyne/NNNNNN.bin files beyond num_frames (from an earlier, longer run) are removed so
 /// that scans and poses stay consistent. Throws ConfigError for invalid configs and IoError when a
 /// file cannot be written.

@@ -1,0 +1,86 @@
+// Deskewing the scans of a sequence while mapping (`shine map --deskew`, docs/odometry.md): which
+// scans are deskewed, with which motion, over which interval.
+//
+// A scan whose points carry times (Scan::point_time_s, seconds relative to the scan's pose;
+// io/point_times.hpp) is moved into the sensor frame at its pose's instant by
+// odometry/scan_deskew.hpp, at constant velocity between consecutive poses:
+//   - given poses: a point measured after the scan's pose (t >= 0) at the velocity of the motion
+//     to the next scan's pose, pose(i)^-1 pose(i+1); one measured before it (t < 0) at that of the
+//     motion from the previous one, pose(i-1)^-1 pose(i) (deskew_scan_between). The first scan
+//     has only the motion to the next, the last only the motion from the previous, for all its
+//     points; a sequence of one scan is left as it is. On the simulated street (a weaving,
+//     pitching drive) this leaves points within 1.2 cm of the walls where the previous motion
+//     alone leaves 11 cm (tests/test_deskew_simulated_sweep.cpp);
+//   - estimated poses: for registration, the last estimated motion (the constant-velocity
+//     prediction's; the first two scans are registered as measured), then for mapping the motion
+//     to the estimated pose (the first scan is mapped as measured: no motion is known yet).
+// Interval: the scans' stamps when the sequence has them (recordings), else scan_period_s times
+// the number of frames between them (frame_step and held-out scans counted).
+//
+// Modes: `on` (--deskew) deskews every scan and stops at the first scan without times, naming
+// it; `auto` (the default) deskews with estimated poses when the scans carry times (with given
+// poses it leaves the scans as measured, as before deskewing existed); `off` never deskews.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "shine/io/point_times.hpp"
+#include "shine/io/scan_sequence.hpp"
+
+namespace shine {
+
+/// When scans are deskewed (file comment).
+enum class DeskewMode : std::uint8_t { kAuto, kOn, kOff };
+
+/// "auto" / "on" / "off".
+const char* to_string(DeskewMode mode);
+
+/// Settings of deskewing (YAML section `deskew:`).
+struct DeskewConfig {
+    DeskewMode mode = DeskewMode::kAuto;
+    /// Seconds between consecutive scans of a sequence without stamps (files): 0.1 s, 10 Hz.
+    double scan_period_s = 0.1;
+};
+
+/// What deskewing did in one run (stats.json "deskew").
+struct DeskewStats {
+    bool active = false;                ///< the run deskews (mode on, or auto with estimated poses)
+    std::size_t scans_deskewed = 0;     ///< scans mapped deskewed
+    std::size_t scans_as_measured = 0;  ///< scans mapped as measured (no times, or no motion yet)
+    PointTimeFormat time_format;        ///< of the first scan with times
+    double max_shift_m = 0.0;           ///< the largest distance a point was moved
+};
+
+/// Whether the run deskews: mode on, or auto with estimated poses.
+bool deskew_active(const DeskewConfig& config, bool estimate_poses);
+
+/// Throws DataError naming scan.source (and the fix) if the scan carries no per-point times.
+void require_point_times(const Scan& scan);
+
+/// Seconds between the reference times of scans `a` and `b` (a < b) of `sequence` (file comment);
+/// throws DataError naming both scans if it is not positive.
+double scan_interval_s(const ScanSequence& sequence, std::size_t a, std::size_t b,
+                       double scan_period_s);
+
+/// Moves scan.points_sensor into the sensor frame at the scan's pose, points before it (t < 0) at
+/// the velocity of T_prev_cur over interval_prev_s, the others at that of T_cur_next over
+/// interval_next_s (odometry/scan_deskew.hpp), and counts it in `stats`; the times are kept.
+/// Returns the largest distance a point moved.
+double deskew_in_place(Scan& scan, const Eigen::Isometry3d& T_prev_cur, double interval_prev_s,
+                       const Eigen::Isometry3d& T_cur_next, double interval_next_s,
+                       DeskewStats& stats);
+
+/// deskew_in_place with one motion for the whole sweep.
+double deskew_in_place(Scan& scan, const Eigen::Isometry3d& T_prev_cur, double interval_s,
+                       DeskewStats& stats);
+
+/// Deskews scan `i` of `sequence` with the sequence's own poses (given poses, file comment), or
+/// counts it as measured when it has no times or the sequence a single scan. With config.mode on,
+/// a scan without times is a DataError (require_point_times).
+void deskew_with_sequence_poses(Scan& scan, const ScanSequence& sequence, std::size_t i,
+                                const DeskewConfig& config, DeskewStats& stats);
+
+}  // namespace shine
