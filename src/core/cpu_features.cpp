@@ -26,7 +26,7 @@ bool& simd_enabled() {
 
 }  // namespace
 
-bool use_f16c() {
+bool use_avx_f16c() {
     static const bool has = cpu_has_f16c();
     return has && simd_enabled();
 }

@@ -36,14 +36,14 @@ __attribute__((target("avx,f16c"))) void floats_to_halves_f16c(const float* in, 
 
 void halves_to_floats(const Imath::half* in, float* out, std::size_t count) {
 #if defined(SHINE_HAVE_F16C_KERNELS)
-    if (use_f16c()) return halves_to_floats_f16c(in, out, count);
+    if (use_avx_f16c()) return halves_to_floats_f16c(in, out, count);
 #endif
     for (std::size_t i = 0; i < count; ++i) out[i] = static_cast<float>(in[i]);
 }
 
 void floats_to_halves(const float* in, Imath::half* out, std::size_t count) {
 #if defined(SHINE_HAVE_F16C_KERNELS)
-    if (use_f16c()) return floats_to_halves_f16c(in, out, count);
+    if (use_avx_f16c()) return floats_to_halves_f16c(in, out, count);
 #endif
     for (std::size_t i = 0; i < count; ++i) out[i] = Imath::half(in[i]);
 }

@@ -134,7 +134,7 @@ template <typename T>
 void gather_batch(BatchGradient& out, const T* table, int dim, Eigen::MatrixXf& X) {
 #if defined(SHINE_HAVE_F16C_KERNELS)
     if constexpr (std::is_same_v<T, Imath::half>) {
-        if (dim == 8 && use_f16c()) return gather_batch_half8_f16c(out, table, X);
+        if (dim == 8 && use_avx_f16c()) return gather_batch_half8_f16c(out, table, X);
     }
 #endif
     if (dim == 8) {
