@@ -2,51 +2,11 @@
 
 #include "shine/io/binary_stream.hpp"
 
-#include "shine/core/cpu_features.hpp"
-
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#include <immintrin.h>
-#define SHINE_HAVE_AVX_KERNELS 1
-#endif
 
 namespace shine {
-namespace {
-
-#if defined(SHINE_HAVE_AVX_KERNELS)
-/// adam_update_row() on the first dim - dim % 8 parameters, 8 at a time with AVX: the SSE loop's
-/// operations on twice the lanes (no FMA), so the same bits. Returns how many it updated.
-__attribute__((target("avx"))) int adam_update_row_avx(float* param, const float* grad, float* m,
-                                                       float* v, int dim, const AdamConfig& config,
-                                                       const AdamBiasCorrection& bias) {
-    const __m256 beta1 = _mm256_set1_ps(config.beta1), beta2 = _mm256_set1_ps(config.beta2);
-    const __m256 one_minus_beta1 = _mm256_set1_ps(1.0f - config.beta1);
-    const __m256 one_minus_beta2 = _mm256_set1_ps(1.0f - config.beta2);
-    const __m256 lr = _mm256_set1_ps(config.learning_rate);
-    const __m256 eps = _mm256_set1_ps(config.epsilon);
-    const __m256 inv_first = _mm256_set1_ps(bias.inv_first);
-    const __m256 inv_second = _mm256_set1_ps(bias.inv_second);
-    int i = 0;
-    for (; i + 8 <= dim; i += 8) {
-        const __m256 g = _mm256_loadu_ps(grad + i);
-        const __m256 m_new = _mm256_add_ps(_mm256_mul_ps(beta1, _mm256_loadu_ps(m + i)),
-                                           _mm256_mul_ps(one_minus_beta1, g));
-        const __m256 v_new = _mm256_add_ps(_mm256_mul_ps(beta2, _mm256_loadu_ps(v + i)),
-                                           _mm256_mul_ps(_mm256_mul_ps(one_minus_beta2, g), g));
-        _mm256_storeu_ps(m + i, m_new);
-        _mm256_storeu_ps(v + i, v_new);
-        const __m256 step =
-            _mm256_div_ps(_mm256_mul_ps(lr, _mm256_mul_ps(m_new, inv_first)),
-                          _mm256_add_ps(_mm256_sqrt_ps(_mm256_mul_ps(v_new, inv_second)), eps));
-        _mm256_storeu_ps(param + i, _mm256_sub_ps(_mm256_loadu_ps(param + i), step));
-    }
-    return i;
-}
-#endif
-
-}  // namespace
 
 void AdamSchedule::reserve_steps(std::uint32_t max_step) {
     while (bias_by_step_.size() < max_step) {
@@ -61,13 +21,6 @@ void adam_update_row(float* param, const float* grad, float* m, float* v, int di
     // divisions, which the scalar loop does not get (std::sqrt may set errno, so the compiler
     // keeps it scalar). Eigen's .sqrt() is not used: with EIGEN_FAST_MATH it is approximate.
     int i = 0;
-#if defined(SHINE_HAVE_AVX_KERNELS)
-    if (dim >= 8 && use_avx_f16c()) {
-        i = adam_update_row_avx(param, grad, m, v, dim, config, bias);
-        param += i, grad += i, m += i, v += i, dim -= i;
-        i = 0;
-    }
-#endif
 #if defined(__SSE2__)
     const __m128 beta1 = _mm_set1_ps(config.beta1), beta2 = _mm_set1_ps(config.beta2);
     const __m128 one_minus_beta1 = _mm_set1_ps(1.0f - config.beta1);
