@@ -12,7 +12,7 @@ namespace {
 
 #if defined(SHINE_HAVE_F16C_KERNELS)
 __attribute__((target("avx,f16c"))) void halves_to_floats_f16c(const Imath::half* in, float* out,
-                                                                  std::size_t count) {
+                                                               std::size_t count) {
     std::size_t i = 0;
     for (; i + 8 <= count; i += 8) {
         const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + i));
@@ -22,7 +22,7 @@ __attribute__((target("avx,f16c"))) void halves_to_floats_f16c(const Imath::half
 }
 
 __attribute__((target("avx,f16c"))) void floats_to_halves_f16c(const float* in, Imath::half* out,
-                                                                  std::size_t count) {
+                                                               std::size_t count) {
     std::size_t i = 0;
     for (; i + 8 <= count; i += 8) {
         const __m128i h = _mm256_cvtps_ph(_mm256_loadu_ps(in + i), _MM_FROUND_TO_NEAREST_INT);

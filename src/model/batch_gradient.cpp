@@ -85,8 +85,8 @@ __attribute__((target("avx,f16c"))) inline __m256 half8_row(const Imath::half* t
 /// load and one conversion instead of 8 table lookups. The same multiplications and additions in
 /// the same order as the plain version (no FMA), so the same bits.
 __attribute__((target("avx,f16c"))) void gather_batch_half8_f16c(BatchGradient& out,
-                                                                    const Imath::half* table,
-                                                                    Eigen::MatrixXf& X) {
+                                                                 const Imath::half* table,
+                                                                 Eigen::MatrixXf& X) {
     constexpr int kDim = 8;
     constexpr std::size_t kAhead = 2;
     const int stride = out.corner_stride;
@@ -105,8 +105,8 @@ __attribute__((target("avx,f16c"))) void gather_batch_half8_f16c(BatchGradient& 
         __m256 sum_f = _mm256_setzero_ps();
         if (!out.eikonal[b]) {
             for (int k = 0; k < corners; ++k) {
-                sum_f = _mm256_add_ps(sum_f,
-                                      _mm256_mul_ps(_mm256_set1_ps(weights[k]), half8_row(table, rows[k])));
+                sum_f = _mm256_add_ps(
+                    sum_f, _mm256_mul_ps(_mm256_set1_ps(weights[k]), half8_row(table, rows[k])));
             }
             _mm256_storeu_ps(feature, sum_f);
             continue;
