@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "shine/bake/level_set_bake.hpp"
+#include "shine/core/cpu_features.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/model/batch_gradient.hpp"
 #include "shine/model/batched_decoder.hpp"
@@ -50,11 +51,12 @@ std::vector<Eigen::Vector3f> sweep(const Eigen::Vector3f& origin) {
 
 /// One sweep of a sensor 1.7 m above a ground plane with a wall at x = 12 m, mapped at 0.2 m.
 struct Scene {
-    NeuralSdf sdf{FeatureOctreeConfig{}, DecoderConfig{}};
+    NeuralSdf sdf;
     RaySet rays;
     std::vector<RaySample> samples;  ///< 6 samples of each of 4096 rays
 
-    Scene() {
+    explicit Scene(FeaturePrecision precision = FeaturePrecision::kFloat32)
+        : sdf(octree_config(precision), DecoderConfig{}) {
         const Eigen::Vector3f origin(0.0f, 0.0f, 1.7f);
         const std::vector<Eigen::Vector3f> endpoints = sweep(origin);
         rays.add_scan(origin, endpoints);
@@ -70,10 +72,22 @@ struct Scene {
             samples.insert(samples.end(), out, out + 6);
         }
     }
+
+    static FeatureOctreeConfig octree_config(FeaturePrecision precision) {
+        FeatureOctreeConfig config;
+        config.feature_precision = precision;
+        return config;
+    }
 };
 
 Scene& scene() {
     static Scene instance;
+    return instance;
+}
+
+/// The same sweep with a float16 feature table (the maps' default).
+Scene& scene_float16() {
+    static Scene instance(FeaturePrecision::kFloat16);
     return instance;
 }
 
@@ -181,6 +195,26 @@ void BM_BatchLossGradient(benchmark::State& state) {
     state.SetItemsProcessed(state.iterations() * s.samples.size());
 }
 BENCHMARK(BM_BatchLossGradient)->Arg(0)->Arg(1)->ArgName("train_decoder");
+
+/// batch_loss_gradient() on a float16 map (decoder frozen, as in incremental mode), with the
+/// AVX/F16C gather (simd:1, where the CPU has it) and the plain one (simd:0).
+void BM_BatchLossGradientFloat16(benchmark::State& state) {
+    const Scene& s = scene_float16();
+    set_simd_enabled(state.range(0) != 0);
+    CellLookup lookup(s.sdf.octree);
+    BatchGradient batch;
+    constexpr std::size_t kChunk = 128;
+    for (auto _ : state) {
+        for (std::size_t i = 0; i + kChunk <= s.samples.size(); i += kChunk) {
+            batch_loss_gradient(s.sdf, lookup, s.samples.data() + i, kChunk, SampleLossConfig{},
+                                batch, nullptr);
+        }
+        benchmark::DoNotOptimize(batch.bce_sum);
+    }
+    set_simd_enabled(true);
+    state.SetItemsProcessed(state.iterations() * s.samples.size());
+}
+BENCHMARK(BM_BatchLossGradientFloat16)->Arg(0)->Arg(1)->ArgName("simd");
 
 void BM_AdamStepRows(benchmark::State& state) {
     // The trainer's feature update: adam_update_row() on rows touched in random order.

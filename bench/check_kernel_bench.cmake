@@ -24,7 +24,7 @@ string(JSON _count LENGTH "${_text}" benchmarks)
 # The kernels the issue asks for (interpolation, decoder forward and backward, Adam step,
 # sampling, bake) and the training step and normals around them.
 set(_families BM_EncodeAndGather BM_DecoderPerSample BM_DecoderBatched BM_SampleLossGradient
-              BM_BatchLossGradient BM_AdamStepRows BM_SampleRay BM_TrainerStep
+              BM_BatchLossGradient BM_BatchLossGradientFloat16 BM_AdamStepRows BM_SampleRay BM_TrainerStep
               BM_PointKdTreeBuild BM_PointKdTreeNearest BM_EstimateRayNormalsWindow BM_Bake)
 foreach(_family ${_families})
     set(_seen_${_family} 0)

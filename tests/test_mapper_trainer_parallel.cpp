@@ -203,3 +203,26 @@ TEST(StageProfile, MediansTotalsAndTable) {
     }
     EXPECT_NE(table.find("2 threads"), std::string::npos) << table;
 }
+
+TEST(Adam, RowOfAnyLengthEqualsTheScalarUpdate) {
+    // Lengths that use the SSE loop (4 at a time) and the scalar tail.
+    std::mt19937 rng(8);
+    std::normal_distribution<float> normal(0.0f, 1.0f);
+    const AdamConfig config;
+    for (const int dim : {1, 4, 7, 8, 13, 16, 29}) {
+        std::vector<float> params(dim), m(dim, 0.0f), v(dim, 0.0f), grads(dim);
+        for (float& p : params) p = normal(rng);
+        std::vector<float> ref_params = params, ref_m = m, ref_v = v;
+        for (std::uint32_t step = 1; step <= 4; ++step) {
+            for (float& g : grads) g = normal(rng);
+            const AdamBiasCorrection bias(config, step);
+            for (int i = 0; i < dim; ++i) {
+                adam_update(ref_params[i], ref_m[i], ref_v[i], grads[i], config, bias);
+            }
+            adam_update_row(params.data(), grads.data(), m.data(), v.data(), dim, config, bias);
+        }
+        EXPECT_EQ(params, ref_params) << "dim " << dim;
+        EXPECT_EQ(m, ref_m) << "dim " << dim;
+        EXPECT_EQ(v, ref_v) << "dim " << dim;
+    }
+}

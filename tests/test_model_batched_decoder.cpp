@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 
+#include "shine/core/cpu_features.hpp"
 #include "shine/model/batch_gradient.hpp"
 #include "shine/model/batched_decoder.hpp"
 #include "shine/model/decoder.hpp"
@@ -132,4 +134,72 @@ TEST(BatchGradient, EqualsPerSampleLossGradientIncludingSamplesOutsideTheMap) {
                     1e-4f + 1e-4f * std::abs(reference_decoder[i]))
             << "decoder param " << i;
     }
+}
+
+// The AVX/F16C gather of a float16 map (a corner's 8 features in one load and conversion) does
+// the plain gather's operations in the same order: every output equal bit for bit.
+TEST(BatchGradient, Float16FastGatherEqualsPlainGatherBitForBit) {
+    FeatureOctreeConfig octree_config;
+    octree_config.leaf_size_m = 0.25;
+    octree_config.num_levels = 3;
+    octree_config.init_std = 0.3f;
+    octree_config.feature_precision = FeaturePrecision::kFloat16;
+    NeuralSdf sdf(octree_config, DecoderConfig{8, {32, 32}, 11});
+    std::vector<Eigen::Vector3f> points;
+    for (int i = 0; i < 40; ++i) points.emplace_back(0.05f * i, 0.03f * i, 0.3f + 0.01f * i);
+    sdf.octree.allocate_cells(points);
+    ASSERT_EQ(sdf.octree.feature_precision(), FeaturePrecision::kFloat16);
+
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<float> coordinate(-0.5f, 2.5f);
+    std::uniform_real_distribution<float> label(-0.2f, 0.2f);
+    std::vector<RaySample> samples;
+    for (int i = 0; i < 500; ++i) {
+        samples.push_back({Eigen::Vector3f(coordinate(rng), 0.6f * coordinate(rng),
+                                           0.2f + 0.2f * coordinate(rng)),
+                           label(rng), i % 3 ? SampleKind::kSurface : SampleKind::kFreeSpace});
+    }
+    const SampleLossConfig config{0.05f, 0.1f};
+    BatchGradient batches[2];
+    std::vector<float> decoder_grads[2];
+    for (int fast = 0; fast < 2; ++fast) {
+        set_simd_enabled(fast == 1);
+        CellLookup lookup(sdf.octree);
+        decoder_grads[fast].assign(sdf.decoder.num_params(), 0.0f);
+        batch_loss_gradient(sdf, lookup, samples.data(), samples.size(), config, batches[fast],
+                            decoder_grads[fast].data());
+    }
+    set_simd_enabled(true);
+    const BatchGradient& plain = batches[0];
+    const BatchGradient& fast = batches[1];
+    ASSERT_EQ(plain.num_valid(), fast.num_valid());
+    ASSERT_GT(plain.num_valid(), 100u);
+    const auto same_bits = [](const float* a, const float* b, std::size_t n) {
+        return std::memcmp(a, b, n * sizeof(float)) == 0;
+    };
+    const std::size_t n = plain.num_valid();
+    const Eigen::Index B = static_cast<Eigen::Index>(n);
+    int eikonal_samples = 0;
+    for (std::size_t b = 0; b < n; ++b) eikonal_samples += plain.eikonal[b];
+    EXPECT_GT(eikonal_samples, 50);
+    EXPECT_TRUE(same_bits(plain.decoder.activations[0].data(), fast.decoder.activations[0].data(),
+                          std::size_t(8 * B)))
+        << "features F";
+    for (std::size_t b = 0; b < n; ++b) {
+        if (!plain.eikonal[b]) continue;
+        EXPECT_TRUE(same_bits(plain.jacobian.data() + b * 24, fast.jacobian.data() + b * 24, 24))
+            << "Jacobian of sample " << b;
+    }
+    EXPECT_TRUE(same_bits(plain.sdf_m.data(), fast.sdf_m.data(), n)) << "f";
+    EXPECT_TRUE(same_bits(plain.decoder.input_gradient.data(), fast.decoder.input_gradient.data(),
+                          std::size_t(8 * B)))
+        << "h";
+    EXPECT_TRUE(same_bits(plain.coefficients.data(), fast.coefficients.data(),
+                          n * std::size_t(plain.corner_stride)))
+        << "coefficients";
+    EXPECT_EQ(plain.bce_sum, fast.bce_sum);
+    EXPECT_EQ(plain.eikonal_sum, fast.eikonal_sum);
+    EXPECT_TRUE(
+        same_bits(decoder_grads[0].data(), decoder_grads[1].data(), decoder_grads[0].size()))
+        << "decoder gradient";
 }

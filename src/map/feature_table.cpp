@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "shine/core/error.hpp"
+#include "shine/map/half_convert.hpp"
 
 namespace shine {
 
@@ -80,7 +81,7 @@ void FeatureTable::get_row(std::size_t row, float* out) const {
     if (precision_ == FeaturePrecision::kFloat32) {
         std::copy_n(f32_.data() + base, dim_, out);
     } else {
-        for (int i = 0; i < dim_; ++i) out[i] = static_cast<float>(f16_[base + i]);
+        halves_to_floats(f16_.data() + base, out, std::size_t(dim_));
     }
 }
 
@@ -89,7 +90,7 @@ void FeatureTable::set_row(std::size_t row, const float* values) {
     if (precision_ == FeaturePrecision::kFloat32) {
         std::copy_n(values, dim_, f32_.data() + base);
     } else {
-        for (int i = 0; i < dim_; ++i) f16_[base + i] = Imath::half(values[i]);
+        floats_to_halves(values, f16_.data() + base, std::size_t(dim_));
     }
 }
 

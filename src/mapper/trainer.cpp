@@ -185,6 +185,7 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
     FeatureTable& table = sdf_.octree.features();
     const bool half = table.precision() == FeaturePrecision::kFloat16;
     float* table_floats = half ? nullptr : table.floats();
+    const Imath::half* table_halves = half ? table.halves() : nullptr;
     const AdamConfig& adam = feature_adam_.config();
     const bool regularize = regularizer != nullptr;
     if (regularize && (!row_state_.has_anchor() || scan_ == 0)) {
@@ -229,25 +230,31 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         // Per touched row: its state block, the regulariser's gradient (Eq. (5), on the rows this
         // iteration used: the set A of Eq. (3)) and the Adam step. Rows are in random order and
         // the loop is bound by cache misses: the blocks of rows a few ahead are requested early.
-        // A row's state is looked up once, when it is requested; ring[j % kAhead] keeps it.
+        // A row's state is looked up once, when it is requested; ring[j % kAhead] keeps its block.
         double regularization = 0.0;
         constexpr std::size_t kAhead = 4;
-        FeatureRowState::Row ring[kAhead];
+        float* ring[kAhead];
         const auto request = [&](std::size_t j) {
-            const FeatureRowState::Row ahead = row_state_.touch(rows[j], scan_);
+            float* block = row_state_.touch_block(rows[j], scan_);
+            const FeatureRowState::Row ahead = row_state_.row_in_block(block);
             __builtin_prefetch(ahead.first_moment, 1);
             __builtin_prefetch(ahead.step, 1);
             if (regularize) {
                 __builtin_prefetch(ahead.anchor, 1);  // the block's next cache line
                 regularizer->prefetch_row(rows[j]);
             }
-            if (!half) __builtin_prefetch(table_floats + std::size_t(rows[j]) * dim, 1);
-            ring[j % kAhead] = ahead;
+            // The map's row, which the step writes (a float16 map: its rounding of the master).
+            if (half) {
+                __builtin_prefetch(table_halves + std::size_t(rows[j]) * dim, 1);
+            } else {
+                __builtin_prefetch(table_floats + std::size_t(rows[j]) * dim, 1);
+            }
+            ring[j % kAhead] = block;
         };
         for (std::size_t j = 0; j < std::min(kAhead, rows.size()); ++j) request(j);
         for (std::size_t i = 0; i < rows.size(); ++i) {
             const std::int32_t row = rows[i];
-            const FeatureRowState::Row state = ring[i % kAhead];
+            const FeatureRowState::Row state = row_state_.row_in_block(ring[i % kAhead]);
             if (i + kAhead < rows.size()) request(i + kAhead);
             float* param;
             if (half) {

@@ -121,23 +121,13 @@ FeatureRowState::Page* FeatureRowState::page_of(std::size_t page_index) {
     return page;
 }
 
-FeatureRowState::Row FeatureRowState::touch(std::int32_t row, std::uint32_t scan) {
+float* FeatureRowState::touch_block(std::int32_t row, std::uint32_t scan) {
     const std::size_t r = static_cast<std::size_t>(row);
     Page* page = page_of(r / kRowsPerPage);
     if (page->last_scan.load(std::memory_order_relaxed) != scan) {
         page->last_scan.store(scan, std::memory_order_relaxed);
     }
-    const std::size_t slot = r % kRowsPerPage;
-    float* block = floats_at(*page, slot);
-    std::uint32_t* ints = counters_at(*page, slot);
-    const std::size_t d = static_cast<std::size_t>(dim_);
-    return {block,
-            block + d,
-            with_anchor_ ? block + 2 * d : nullptr,
-            with_master_ ? block + (2 + with_anchor_) * d : nullptr,
-            ints,
-            ints + 1,
-            ints + 2};
+    return floats_at(*page, r % kRowsPerPage);
 }
 
 std::size_t FeatureRowState::release_unused_pages(std::uint32_t oldest_kept) {

@@ -55,7 +55,23 @@ class FeatureRowState {
     void resize(std::size_t num_rows);
     /// The state of `row`, allocating its page (zeroed) if needed and marking the page used in
     /// `scan`. Safe to call concurrently for different rows, also of one page.
-    Row touch(std::int32_t row, std::uint32_t scan);
+    Row touch(std::int32_t row, std::uint32_t scan) { return row_in_block(touch_block(row, scan)); }
+    /// As touch(), but returns only the start of the row's block, which row_in_block() turns into
+    /// the Row: one pointer is what a loop that requests rows ahead keeps in flight (a Row copied
+    /// through memory costs more than the pointers it holds).
+    float* touch_block(std::int32_t row, std::uint32_t scan);
+    /// The Row whose block starts at `block` (a touch_block() result).
+    Row row_in_block(float* block) const {
+        const std::size_t d = static_cast<std::size_t>(dim_);
+        std::uint32_t* ints = reinterpret_cast<std::uint32_t*>(block + floats_per_row_);
+        return {block,
+                block + d,
+                with_anchor_ ? block + 2 * d : nullptr,
+                with_master_ ? block + (2 + with_anchor_) * d : nullptr,
+                ints,
+                ints + 1,
+                ints + 2};
+    }
     /// Frees the pages no row of which was touched in scan `oldest_kept` or later. Not concurrent
     /// with touch(). Returns the number of pages freed.
     std::size_t release_unused_pages(std::uint32_t oldest_kept);
