@@ -61,6 +61,7 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
                                  past_count, config_.dynamic, &votes_[past_begin]);
         }
         voters_.push_back(std::move(voter));
+        scan_sources_.push_back(scan.source);
         while (voters_.size() > static_cast<std::size_t>(config_.dynamic.vote_frames)) {
             voters_.pop_front();
         }
@@ -113,7 +114,7 @@ void BatchMapper::finish_scans() {
         points.clear();
         for (std::size_t r = begin; r < end; ++r) points.push_back(rays_.endpoint(r));
         if (!points.empty()) sdf_->octree.allocate_cells(points);
-        check_map_budget(*sdf_, config_.max_map_mb, s, "scan " + std::to_string(s));
+        check_map_budget(*sdf_, config_.max_map_mb, s, scan_sources_[s]);
     }
     stats_.allocate_seconds += seconds_since(start);
 }

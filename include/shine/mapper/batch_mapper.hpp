@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <vector>
@@ -102,6 +103,7 @@ class BatchMapper {
     bool origin_set_ = false;
     std::deque<Voter> voters_;           ///< the last dynamic.vote_frames scans
     std::vector<FreeSpaceVotes> votes_;  ///< per ray, until the dynamic points are dropped
+    std::vector<std::filesystem::path> scan_sources_;  ///< per scan, for the budget's message
     bool dynamic_dropped_ = false;
     // Training state, kept between train() calls.
     std::unique_ptr<Trainer> trainer_;
