@@ -1,5 +1,8 @@
 #include "shine/sampling/range_image.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -13,13 +16,26 @@ float elevation_of(const Eigen::Vector3f& d) { return std::atan2(d.z(), std::hyp
 }  // namespace
 
 RangeImage::RangeImage(const std::vector<Eigen::Vector3f>& points_sensor) {
+    // The angles of every return once, in parallel (the image is built for every scan).
+    const std::size_t n = points_sensor.size();
+    std::vector<float> range_m(n), elevation_rad(n), azimuth_rad(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+                      [&](const tbb::blocked_range<std::size_t>& block) {
+                          for (std::size_t i = block.begin(); i != block.end(); ++i) {
+                              const Eigen::Vector3f& p = points_sensor[i];
+                              const float r = p.allFinite() ? p.norm() : 0.0f;
+                              range_m[i] = r >= kMinRangeM ? r : 0.0f;
+                              if (range_m[i] == 0.0f) continue;
+                              elevation_rad[i] = elevation_of(p);
+                              azimuth_rad[i] = azimuth_of(p);
+                          }
+                      });
     std::size_t usable = 0;
     float el_min = 10.0f, el_max = -10.0f;
-    for (const Eigen::Vector3f& p : points_sensor) {
-        if (!p.allFinite() || p.norm() < kMinRangeM) continue;
-        const float el = elevation_of(p);
-        el_min = std::min(el_min, el);
-        el_max = std::max(el_max, el);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (range_m[i] == 0.0f) continue;
+        el_min = std::min(el_min, elevation_rad[i]);
+        el_max = std::max(el_max, elevation_rad[i]);
         ++usable;
     }
     if (usable < 2) return;
@@ -32,14 +48,13 @@ RangeImage::RangeImage(const std::vector<Eigen::Vector3f>& points_sensor) {
     elevation_min_rad_ = el_min;
     rows_ = static_cast<int>(std::floor((el_max - el_min) / bin_rad_)) + 1;
     ranges_.assign(static_cast<std::size_t>(rows_) * static_cast<std::size_t>(cols_), 0.0f);
-    for (const Eigen::Vector3f& p : points_sensor) {
-        if (!p.allFinite()) continue;
-        const float r = p.norm();
-        if (r < kMinRangeM) continue;
+    for (std::size_t i = 0; i < n; ++i) {
+        const float r = range_m[i];
+        if (r == 0.0f) continue;
         const int row = std::clamp(
-            static_cast<int>((elevation_of(p) - elevation_min_rad_) / bin_rad_), 0, rows_ - 1);
+            static_cast<int>((elevation_rad[i] - elevation_min_rad_) / bin_rad_), 0, rows_ - 1);
         const int col =
-            std::clamp(static_cast<int>((azimuth_of(p) + kTwoPi / 2) / bin_rad_), 0, cols_ - 1);
+            std::clamp(static_cast<int>((azimuth_rad[i] + kTwoPi / 2) / bin_rad_), 0, cols_ - 1);
         float& bin = ranges_[static_cast<std::size_t>(row) * cols_ + col];
         if (bin == 0.0f || r < bin) bin = r;
     }
