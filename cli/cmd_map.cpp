@@ -52,6 +52,7 @@ struct MapOptions {
     bool deskew = false;     ///< --deskew: deskew.mode on
     bool no_deskew = false;  ///< --no-deskew: deskew.mode off
     bool half_features = false;
+    std::string dynamic_filter;  ///< "on", "off" or empty (the configuration's)
     bool full_features = false;
     std::string mode = "batch";
     int mesh_every = -1;
@@ -151,6 +152,8 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
         frames.push_back({{"rays", f.rays},
                           {"new_corners", f.new_corners},
                           {"rays_with_normal", f.rays_with_normal},
+                          {"dynamic_dropped", f.dynamic_dropped},
+                          {"dynamic_forgotten", f.dynamic_forgotten},
                           {"seconds", f.total_seconds},
                           {"train_seconds", f.train_seconds},
                           {"importance_seconds", f.importance_seconds},
@@ -292,6 +295,10 @@ MapperConfig config_from_options(const MapOptions& opt) {
     if (opt.max_map_mb >= 0.0) config.max_map_mb = opt.max_map_mb;
     if (opt.deskew) config.deskew.mode = DeskewMode::kOn;
     if (opt.no_deskew) config.deskew.mode = DeskewMode::kOff;
+    if (!opt.dynamic_filter.empty()) {
+        config.dynamic.enabled = opt.dynamic_filter == "on";
+        config.mark_set("dynamic.enabled");
+    }
     return config;
 }
 
@@ -456,6 +463,13 @@ int run_map(const MapOptions& given_options) {
     json["leaf_size_m"] = config.octree.leaf_size_m;
     json["scene"] = to_string(config.resolved_scene());
     json["iterations"] = stats.iterations;
+    json["dynamic"] = {
+        {"enabled", config.dynamic.enabled},
+        {"points_dropped", stats.dynamic_points_dropped},
+        {"share_dropped", stats.rays ? static_cast<double>(stats.dynamic_points_dropped) /
+                                           static_cast<double>(stats.rays)
+                                     : 0.0},
+        {"seconds", stats.dynamic_seconds}};
     json["preprocess"] = {{"input_points", stats.preprocess.input},
                           {"dropped_nonfinite", stats.preprocess.dropped_nonfinite},
                           {"dropped_zero_range", stats.preprocess.dropped_zero_range},
@@ -607,6 +621,10 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     cmd->add_flag("--full-features", opt->full_features,
                   "Store the features in float32 (map.feature_precision: float32)")
         ->excludes("--half-features");
+    cmd->add_option("--dynamic-filter", opt->dynamic_filter,
+                    "on (the default): drop the points other scans see through (moving objects, "
+                    "docs/movers.md); off: map every point (config dynamic.enabled)")
+        ->check(CLI::IsMember({"on", "off"}));
     cmd->add_option("--max-map-mb", opt->max_map_mb,
                     "Stop before training if the map (features + structure) would exceed this "
                     "many MB (0 = unlimited; config map.max_map_mb)")

@@ -96,6 +96,7 @@ int run_pretrain(const PretrainOptions& opt) {
         }
         progress.finish(std::to_string(mapper.stats().rays) + " rays in all");
     }
+    mapper.finish_scans();
     train_with_progress(mapper, mapper.planned_iterations());
     const std::string provenance = command_line(opt, config);
     save_decoder(opt.out, mapper.sdf().decoder, provenance);

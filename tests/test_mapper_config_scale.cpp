@@ -48,6 +48,8 @@ TEST(MapperConfigScale, UnsetLengthsFollowTheLeafFromYaml) {
     EXPECT_NEAR(c.normals.max_radius_m, 1.0 * s, kFloatToleranceM);
     EXPECT_NEAR(c.trainer.sigma_m, 0.05 * s, kFloatToleranceM);
     EXPECT_NEAR(c.incremental.surface_band_m, 0.15 * s, kFloatToleranceM);
+    // The dynamic filter's hit tolerance is twice the band (the data's accuracy).
+    EXPECT_NEAR(c.dynamic.margin_m, 2 * 0.0045, kFloatToleranceM);
     // Ranges come from the object preset, not from the leaf.
     EXPECT_EQ(c.preprocess.min_range_m, 0.1);
     EXPECT_EQ(c.preprocess.max_range_m, 3.0);

@@ -149,6 +149,7 @@ class NeuralMap {
                                          : std::string("train() is for batch mode, this map is ") +
                                                mode_name(mode_));
         }
+        batch_->finish_scans();  // the dynamic-point filter, then the map the schedule follows
         const int total = batch_->planned_iterations();
         int target = total;
         if (!steps.is_none()) {

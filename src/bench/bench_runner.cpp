@@ -158,6 +158,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
             tsdf->add_scan(scan);
             progress.update(i + 1);
         }
+        shine.finish_scans();
         progress.finish(std::to_string(shine.sdf().octree.num_corners()) + " corners, " +
                         std::to_string(tsdf->volume().active_voxels()) + " voxels");
     }

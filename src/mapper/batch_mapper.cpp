@@ -5,6 +5,7 @@
 #include <type_traits>
 
 #include "shine/core/error.hpp"
+#include "shine/geometry/map_frame.hpp"
 #include "shine/io/binary_stream.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/map_budget.hpp"
@@ -32,22 +33,95 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
     const ScanInMap in_map =
         scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess);
     const std::vector<Eigen::Vector3f>& points_map = in_map.points_map;
-    rays_.add_scan(in_map.origin_map, points_map);
+    const std::uint32_t index = rays_.add_scan(in_map.origin_map, points_map);
+    const bool filter = config_.dynamic.enabled;
+    if (filter) {
+        if (dynamic_dropped_) {
+            throw Error("BatchMapper::add_scan after training started: the map is allocated");
+        }
+        const auto vote_start = std::chrono::steady_clock::now();
+        // The new scan's points are voted on by the scans before it, and it votes on theirs; the
+        // scans after it vote when they arrive.
+        votes_.resize(rays_.num_rays());
+        Voter voter;
+        voter.scan = index;
+        voter.T_sensor_map =
+            map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m).inverse().cast<float>();
+        voter.image = RangeImage(scan.points_sensor);
+        const std::size_t begin = rays_.first_ray(index);
+        for (const Voter& past : voters_) {
+            if (!points_map.empty()) {
+                add_free_space_votes(past.image, past.T_sensor_map, &rays_.endpoint(begin),
+                                     points_map.size(), config_.dynamic, &votes_[begin]);
+            }
+            const std::size_t past_begin = rays_.first_ray(past.scan);
+            const std::size_t past_count = rays_.first_ray(past.scan + 1) - past_begin;
+            if (past_count == 0) continue;
+            add_free_space_votes(voter.image, voter.T_sensor_map, &rays_.endpoint(past_begin),
+                                 past_count, config_.dynamic, &votes_[past_begin]);
+        }
+        voters_.push_back(std::move(voter));
+        scan_sources_.push_back(scan.source);
+        while (voters_.size() > static_cast<std::size_t>(config_.dynamic.vote_frames)) {
+            voters_.pop_front();
+        }
+        stats_.dynamic_seconds += seconds_since(vote_start);
+    }
     stages[Stage::kPreprocess] = seconds_since(start);
     stats_.load_seconds += stages[Stage::kPreprocess];
 
-    start = std::chrono::steady_clock::now();
-    sdf_->octree.allocate_cells(points_map);
-    check_map_budget(*sdf_, config_.max_map_mb, stats_.frames, scan.source);
-    stages[Stage::kAllocate] = seconds_since(start);
-    stats_.allocate_seconds += stages[Stage::kAllocate];
+    if (!filter) {
+        start = std::chrono::steady_clock::now();
+        sdf_->octree.allocate_cells(points_map);
+        check_map_budget(*sdf_, config_.max_map_mb, stats_.frames, scan.source);
+        stages[Stage::kAllocate] = seconds_since(start);
+        stats_.allocate_seconds += stages[Stage::kAllocate];
+    }
     ++stats_.frames;
     stats_.rays = rays_.num_rays();
     return stages;
 }
 
+void BatchMapper::finish_scans() {
+    if (!config_.dynamic.enabled || dynamic_dropped_) return;
+    dynamic_dropped_ = true;
+    auto start = std::chrono::steady_clock::now();
+    RaySet kept;
+    std::vector<Eigen::Vector3f> points;
+    std::size_t dropped = 0;
+    for (std::uint32_t s = 0; s < rays_.num_scans(); ++s) {
+        points.clear();
+        const std::size_t begin = rays_.first_ray(s), end = rays_.first_ray(s + 1);
+        for (std::size_t r = begin; r < end; ++r) {
+            if (is_dynamic(votes_[r], config_.dynamic)) {
+                ++dropped;
+            } else {
+                points.push_back(rays_.endpoint(r));
+            }
+        }
+        kept.add_scan(rays_.origin_of_ray(begin), points);
+    }
+    rays_ = std::move(kept);
+    votes_ = {};
+    voters_ = {};
+    stats_.dynamic_points_dropped = dropped;
+    stats_.dynamic_seconds += seconds_since(start);
+    stats_.load_seconds += seconds_since(start);
+
+    start = std::chrono::steady_clock::now();
+    for (std::uint32_t s = 0; s < rays_.num_scans(); ++s) {
+        const std::size_t begin = rays_.first_ray(s), end = rays_.first_ray(s + 1);
+        points.clear();
+        for (std::size_t r = begin; r < end; ++r) points.push_back(rays_.endpoint(r));
+        if (!points.empty()) sdf_->octree.allocate_cells(points);
+        check_map_budget(*sdf_, config_.max_map_mb, s, scan_sources_[s]);
+    }
+    stats_.allocate_seconds += seconds_since(start);
+}
+
 bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progress,
                         const std::function<bool()>& stop) {
+    finish_scans();
     if (rays_.num_rays() == 0) {
         throw DataError("no points left to map after preprocessing (check the range limits)");
     }
@@ -111,6 +185,7 @@ void BatchMapper::save_state(BinaryWriter& out) const {
 void BatchMapper::load_state(BinaryReader& in) {
     in.expect_tag("batch mapper");
     const auto stats = in.value<MappingStats>("mapping statistics");
+    finish_scans();  // as train() did before the checkpoint
     if (stats.frames != stats_.frames || stats.rays != stats_.rays) {
         in.fail("mapping statistics",
                 "record " + std::to_string(stats.frames) + " scans with " +
@@ -137,6 +212,7 @@ void BatchMapper::load_state(BinaryReader& in) {
     stats_ = stats;
     stats_.load_seconds += reloaded.load_seconds;
     stats_.allocate_seconds += reloaded.allocate_seconds;
+    stats_.dynamic_seconds += reloaded.dynamic_seconds;
     normals_done_ = false;  // the normals are not stored: train() estimates them again
     iterations_done_ = iterations_done;
     bce_average_ = bce_average;

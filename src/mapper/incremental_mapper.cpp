@@ -11,6 +11,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
+#include "shine/geometry/map_frame.hpp"
 #include "shine/io/binary_stream.hpp"
 #include "shine/io/preprocess.hpp"
 #include "shine/mapper/checkpoint.hpp"
@@ -112,6 +113,12 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
     auto start = std::chrono::steady_clock::now();
     ScanInMap current = scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess);
     frame.rays = current.points_map.size();
+    std::vector<FreeSpaceVotes> votes;
+    if (config_.dynamic.enabled) {
+        const auto vote_start = std::chrono::steady_clock::now();
+        votes = drop_dynamic_points(scan, current, frame);
+        stats_.dynamic_seconds += seconds_since(vote_start);
+    }
     frame.preprocess_seconds = seconds_since(start);
 
     // 2. Grow the map.
@@ -122,12 +129,67 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
     importance_.resize(sdf_->octree.num_corners());
     frame.allocate_seconds = seconds_since(start);
 
+    window_votes_.push_back(std::move(votes));
     window_.push_back(std::move(current));
     window_normals_.emplace_back();
     while (window_.size() > static_cast<std::size_t>(config_.incremental.normal_window_frames)) {
         window_.pop_front();
         window_normals_.pop_front();
+        window_votes_.pop_front();
     }
+}
+
+std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& scan,
+                                                                   ScanInMap& current,
+                                                                   IncrementalFrameStats& frame) {
+    const DynamicPointConfig& dynamic = config_.dynamic;
+    const Eigen::Isometry3f T_sensor_map =
+        map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m).inverse().cast<float>();
+    RangeImage image(scan.points_sensor);
+    // The scan's own points, voted on by the scans before it.
+    std::vector<FreeSpaceVotes> votes(current.points_map.size());
+    if (!votes.empty()) {
+        for (const auto& [T_past_map, past_image] : voters_) {
+            add_free_space_votes(past_image, T_past_map, current.points_map.data(),
+                                 current.points_map.size(), dynamic, votes.data());
+        }
+    }
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < votes.size(); ++i) {
+        if (is_dynamic(votes[i], dynamic)) continue;
+        current.points_map[kept] = current.points_map[i];
+        votes[kept++] = votes[i];
+    }
+    frame.dynamic_dropped = votes.size() - kept;
+    current.points_map.resize(kept);
+    votes.resize(kept);
+    // The window's points this scan sees through are dropped from the window (with their normals),
+    // so that replay and the normals of later scans no longer use them.
+    for (std::size_t w = 0; w < window_.size(); ++w) {
+        std::vector<Eigen::Vector3f>& points = window_[w].points_map;
+        std::vector<FreeSpaceVotes>& past_votes = window_votes_[w];
+        std::vector<Eigen::Vector3f>& normals = window_normals_[w];
+        if (points.empty() || past_votes.size() != points.size()) continue;
+        add_free_space_votes(image, T_sensor_map, points.data(), points.size(), dynamic,
+                             past_votes.data());
+        const bool with_normals = normals.size() == points.size();
+        std::size_t k = 0;
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            if (is_dynamic(past_votes[i], dynamic)) continue;
+            points[k] = points[i];
+            past_votes[k] = past_votes[i];
+            if (with_normals) normals[k] = normals[i];
+            ++k;
+        }
+        frame.dynamic_forgotten += points.size() - k;
+        points.resize(k);
+        past_votes.resize(k);
+        if (with_normals) normals.resize(k);
+    }
+    stats_.dynamic_points_dropped += frame.dynamic_dropped + frame.dynamic_forgotten;
+    voters_.emplace_back(T_sensor_map, std::move(image));
+    while (voters_.size() > static_cast<std::size_t>(dynamic.vote_frames)) voters_.pop_front();
+    return votes;  // the kept points' votes so far; the scans after it add theirs
 }
 
 std::size_t IncrementalMapper::window_rays_with_normals(RaySet& rays,
@@ -275,6 +337,8 @@ void IncrementalMapper::release_training_state() {
     importance_ = ImportanceWeights();
     window_ = {};
     window_normals_ = {};
+    window_votes_ = {};
+    voters_ = {};
     sdf_->octree.compact_structure();
 #if defined(__GLIBC__)
     malloc_trim(0);  // hand the freed pages back, so that the products find them free

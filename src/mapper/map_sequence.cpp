@@ -119,7 +119,10 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
             StageSeconds stages = mapper.add_scan(scan);
             stages[Stage::kLoad] = load_seconds;
             result.profile.frames.push_back(stages);
-            progress.update(i + 1, std::to_string(mapper.sdf().octree.num_corners()) + " corners");
+            progress.update(i + 1,
+                            config.dynamic.enabled
+                                ? std::to_string(mapper.stats().rays) + " rays"
+                                : std::to_string(mapper.sdf().octree.num_corners()) + " corners");
             if (checkpoints && !resume && i + 1 < sequence.size() && stop()) {
                 progress.finish("stopped");
                 write_batch_checkpoint(*control, mapper, BatchPhase::kLoading);
@@ -128,6 +131,7 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
                                                             std::to_string(sequence.size()));
             }
         }
+        mapper.finish_scans();
         progress.finish(std::to_string(mapper.stats().rays) + " rays, " +
                         std::to_string(mapper.sdf().octree.num_corners()) + " corners");
     }

@@ -257,6 +257,14 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
         {"deskew",
          {{"mode", deskew_mode(c.deskew.mode)},
           {"scan_period_s", number(c.deskew.scan_period_s, 1e-4, 1e4)}}},
+        {"dynamic",
+         {{"enabled", boolean(c.dynamic.enabled)},
+          {"vote_frames", number(c.dynamic.vote_frames, 1, 100000)},
+          {"window_bins", number(c.dynamic.window_bins, 0, 16)},
+          {"margin_m", number(c.dynamic.margin_m, 1e-6, 100.0)},
+          {"beam_margin", number(c.dynamic.beam_margin, 0.0, 100.0)},
+          {"min_free_votes", number(c.dynamic.min_free_votes, 1, 65535)},
+          {"min_free_share", number(c.dynamic.min_free_share, 1e-6, 1.0)}}},
         {"bake",
          {{"voxel_size_m", number(c.bake.voxel_size_m, 0.0, 100.0)},
           {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)},
@@ -323,6 +331,11 @@ void apply_scale_free_defaults(MapperConfig& c) {
         // both sides of every cell's surface.
         c.sampling.surface_band_m =
             static_cast<float>(std::max(scene.surface_band_m, 0.5 * c.octree.leaf_size_m));
+    }
+    // A hit is a return within the data's accuracy of the point: twice the surface band (0.2 m
+    // outdoors, 9 mm on the object scene).
+    if (!c.is_set("dynamic.margin_m") && c.dynamic.margin_m == outdoor.dynamic.margin_m) {
+        c.dynamic.margin_m = 2.0f * c.sampling.surface_band_m;
     }
     // Exactly 1 at the outdoor leaf, so the street's lengths keep every bit.
     const double scale = c.octree.leaf_size_m / outdoor.octree.leaf_size_m;
@@ -412,6 +425,7 @@ void MapperConfig::finalize() {
     if (sampling.samples_per_ray() < 1) {
         throw ConfigError("sampling: at least one sample per ray is needed");
     }
+    check_dynamic_point_config(dynamic);
     if (crop_world_m.size() == 6) {
         for (int k = 0; k < 3; ++k) {
             if (!(crop_world_m[k] < crop_world_m[k + 3])) {

@@ -1,16 +1,26 @@
 // Batch-mode mapping (paper Sec. III-B): all scans are loaded, the map is allocated around all
 // their points, then features and decoder are optimised jointly on rays drawn from every scan.
+//
+// With the dynamic-point filter (config.dynamic, free_space_votes.hpp) each scan's points are
+// voted on by the dynamic.vote_frames scans before and after it as the scans arrive (only that
+// many range images are held); the points other scans see through are dropped before training,
+// and the map is allocated around the kept points only, when training starts.
 #pragma once
 
 #include <cstdint>
+#include <deque>
+#include <filesystem>
 #include <functional>
 #include <memory>
+#include <vector>
 
 #include "shine/io/preprocess.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
 #include "shine/mapper/stage_profile.hpp"
 #include "shine/model/neural_sdf.hpp"
+#include "shine/sampling/free_space_votes.hpp"
+#include "shine/sampling/range_image.hpp"
 #include "shine/sampling/ray_set.hpp"
 
 namespace shine {
@@ -24,7 +34,10 @@ struct MappingStats {
     std::size_t frames = 0;
     std::size_t rays = 0;
     PreprocessStats preprocess;
-    double load_seconds = 0.0;      ///< reading and preprocessing scans
+    double load_seconds = 0.0;  ///< reading and preprocessing scans (dynamic_seconds included)
+    /// Points the dynamic-point filter dropped (free_space_votes.hpp); rays counts them too.
+    std::size_t dynamic_points_dropped = 0;
+    double dynamic_seconds = 0.0;   ///< range images and free-space votes
     double allocate_seconds = 0.0;  ///< growing the octree
     double normals_seconds = 0.0;   ///< surface normals for the label correction
     double train_seconds = 0.0;
@@ -39,9 +52,10 @@ class BatchMapper {
     explicit BatchMapper(const MapperConfig& config);
     ~BatchMapper();
 
-    /// Preprocesses a scan, moves it to the map frame and allocates the map around it. The first
-    /// scan fixes the map origin (its position rounded to whole kilometres). Returns the seconds
-    /// of its preprocess and allocate stages.
+    /// Preprocesses a scan, moves it to the map frame and allocates the map around it (with the
+    /// dynamic-point filter: votes on it and its neighbours instead; the map is allocated when
+    /// training starts). The first scan fixes the map origin (its position rounded to whole
+    /// kilometres). Returns the seconds of its preprocess and allocate stages.
     StageSeconds add_scan(const Scan& scan);
 
     /// Runs the config.batch_iterations() optimisation steps not yet done; `on_progress(done,
@@ -55,7 +69,7 @@ class BatchMapper {
     /// Steps done so far.
     int iterations_done() const { return iterations_done_; }
     /// The steps this run trains: config.batch_schedule() for this map's corner count (known once
-    /// the scans are added; the automatic schedule follows it).
+    /// the scans are added and finish_scans() ran; the automatic schedule follows it).
     int planned_iterations() const;
 
     /// The training state (parameters, optimiser, step count, stats) for a checkpoint.
@@ -69,12 +83,28 @@ class BatchMapper {
     const MappingStats& stats() const { return stats_; }
     const RaySet& rays() const { return rays_; }
 
+    /// Ends the loading: with the dynamic-point filter, drops the dynamic points and allocates the
+    /// map around the rest (once; later calls do nothing). train() and load_state() call it; call
+    /// it before planned_iterations() or the map's size are needed, as they depend on the map.
+    void finish_scans();
+
   private:
+    /// A scan that still votes on the scans after it.
+    struct Voter {
+        std::uint32_t scan = 0;
+        Eigen::Isometry3f T_sensor_map;
+        RangeImage image;
+    };
+
     MapperConfig config_;
     std::unique_ptr<NeuralSdf> sdf_;
     RaySet rays_;
     MappingStats stats_;
     bool origin_set_ = false;
+    std::deque<Voter> voters_;           ///< the last dynamic.vote_frames scans
+    std::vector<FreeSpaceVotes> votes_;  ///< per ray, until the dynamic points are dropped
+    std::vector<std::filesystem::path> scan_sources_;  ///< per scan, for the budget's message
+    bool dynamic_dropped_ = false;
     // Training state, kept between train() calls.
     std::unique_ptr<Trainer> trainer_;
     bool normals_done_ = false;

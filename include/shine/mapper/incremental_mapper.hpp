@@ -3,7 +3,11 @@
 //
 // Per scan (add_scan):
 //   1. preprocess it and move it into the map frame (the first scan fixes the map origin);
-//   2. grow the octree around its points (new rows: Omega = 0);
+//   2. with the dynamic-point filter (config.dynamic, free_space_votes.hpp): drop the scan's points
+//      that the last dynamic.vote_frames scans saw through (only the past votes here, so a
+//      parked car seen first is kept), and drop the points of the normal window's earlier scans
+//      that this scan sees through, so that they are not trained again;
+//      then grow the octree around its points (new rows: Omega = 0);
 //   3. estimate its endpoint normals among its own and the last few scans' endpoints;
 //   4. run incremental.iterations_per_frame steps on rays drawn from this scan only (surface
 //      band incremental.surface_band_m, learning rate decaying over the scan's steps), the loss
@@ -30,6 +34,8 @@
 #include "shine/model/decoder.hpp"
 #include "shine/model/neural_sdf.hpp"
 #include "shine/optim/importance_weights.hpp"
+#include "shine/sampling/free_space_votes.hpp"
+#include "shine/sampling/range_image.hpp"
 #include "shine/sampling/ray_set.hpp"
 
 namespace shine {
@@ -40,9 +46,13 @@ class Trainer;
 
 /// What one add_scan() did and how long each step took (wall-clock seconds).
 struct IncrementalFrameStats {
-    std::size_t rays = 0;         ///< points of the scan after preprocessing
+    std::size_t rays = 0;         ///< points of the scan after preprocessing (dynamic ones too)
     std::size_t new_corners = 0;  ///< feature rows the scan added
     std::size_t rays_with_normal = 0;
+    /// Points the dynamic-point filter dropped: of this scan, and of the window's earlier scans
+    /// because this scan saw through them.
+    std::size_t dynamic_dropped = 0;
+    std::size_t dynamic_forgotten = 0;
     double preprocess_seconds = 0.0;
     double allocate_seconds = 0.0;
     double normals_seconds = 0.0;
@@ -104,8 +114,13 @@ class IncrementalMapper {
     void release_training_state();
 
   private:
-    /// Steps 1-2 of add_scan(): fills frame.rays, new_corners, preprocess and allocate seconds.
+    /// Steps 1-2 of add_scan(): fills frame.rays, new_corners, dynamic counts, preprocess and
+    /// allocate seconds.
     void preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame);
+    /// Step 2's filter: drops `current`'s dynamic points and the window's points it sees through;
+    /// returns the votes of `current`'s kept points.
+    std::vector<FreeSpaceVotes> drop_dynamic_points(const Scan& scan, ScanInMap& current,
+                                                    IncrementalFrameStats& frame);
     /// The window's rays (the current scan last) with every scan's normals: the earlier scans'
     /// as stored, the current scan's estimated now (step 3) and stored for the scans after it.
     /// Returns the current scan's first ray.
@@ -121,6 +136,10 @@ class IncrementalMapper {
     /// The endpoint normals of window_'s scans, each estimated when its scan was the current one
     /// (empty with normals disabled).
     std::deque<std::vector<Eigen::Vector3f>> window_normals_;
+    /// The votes window_'s points have received from the scans after them.
+    std::deque<std::vector<FreeSpaceVotes>> window_votes_;
+    /// Range images of the last dynamic.vote_frames scans, with their map-to-sensor transforms.
+    std::deque<std::pair<Eigen::Isometry3f, RangeImage>> voters_;
     std::vector<IncrementalFrameStats> frames_;
     MappingStats stats_;
     std::uint64_t iteration_ = 0;

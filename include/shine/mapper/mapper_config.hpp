@@ -7,6 +7,7 @@
 //   - with the leaf, in proportion to leaf / 0.2 m: preprocess.voxel_downsample_m,
 //     sampling.normal_radius_m, training.sigma_m, incremental.surface_band_m (bake.voxel_size_m 0
 //     is already half the leaf);
+//   - with the surface band (the data's accuracy): dynamic.margin_m, twice sampling.surface_band_m;
 //   - with the scene (map.scene, scene_preset.hpp; "auto" infers it from the leaf): the range
 //     crop preprocess.min_range_m / max_range_m, the surface band sampling.surface_band_m (the
 //     data's accuracy, not the resolution; at least half a leaf), and the leaf itself when only
@@ -31,6 +32,7 @@
 #include "shine/mapper/trainer.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/decoder.hpp"
+#include "shine/sampling/free_space_votes.hpp"
 #include "shine/sampling/ray_sampler.hpp"
 #include "shine/sampling/surface_normals.hpp"
 
@@ -63,6 +65,9 @@ struct MapperConfig {
     DecoderConfig decoder;
     SamplingConfig sampling;
     NormalConfig normals;  ///< endpoint normals for labels that are true distances
+    /// Drops the points other scans see through (moving objects) before training; YAML section
+    /// `dynamic`, `shine map --dynamic-filter off` turns it off (docs/movers.md).
+    DynamicPointConfig dynamic;
     /// The optimiser. In batch mode trainer.batch_size 0 and trainer.feature_adam.learning_rate 0
     /// (the defaults) are automatic: batch_schedule() chooses them.
     TrainerConfig trainer;

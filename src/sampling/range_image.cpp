@@ -1,0 +1,89 @@
+#include "shine/sampling/range_image.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace shine {
+namespace {
+constexpr float kTwoPi = 6.28318530717958647692f;
+constexpr float kMinRangeM = 1e-6f;
+
+float azimuth_of(const Eigen::Vector3f& d) { return std::atan2(d.y(), d.x()); }
+float elevation_of(const Eigen::Vector3f& d) { return std::atan2(d.z(), std::hypot(d.x(), d.y())); }
+}  // namespace
+
+RangeImage::RangeImage(const std::vector<Eigen::Vector3f>& points_sensor) {
+    // The angles of every return once, in parallel (the image is built for every scan).
+    const std::size_t n = points_sensor.size();
+    std::vector<float> range_m(n), elevation_rad(n), azimuth_rad(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+                      [&](const tbb::blocked_range<std::size_t>& block) {
+                          for (std::size_t i = block.begin(); i != block.end(); ++i) {
+                              const Eigen::Vector3f& p = points_sensor[i];
+                              const float r = p.allFinite() ? p.norm() : 0.0f;
+                              range_m[i] = r >= kMinRangeM ? r : 0.0f;
+                              if (range_m[i] == 0.0f) continue;
+                              elevation_rad[i] = elevation_of(p);
+                              azimuth_rad[i] = azimuth_of(p);
+                          }
+                      });
+    std::size_t usable = 0;
+    float el_min = 10.0f, el_max = -10.0f;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (range_m[i] == 0.0f) continue;
+        el_min = std::min(el_min, elevation_rad[i]);
+        el_max = std::max(el_max, elevation_rad[i]);
+        ++usable;
+    }
+    if (usable < 2) return;
+    // About one return per bin over the solid angle the scan covers (file comment); a scan in one
+    // plane still gets bins of its own azimuth spacing.
+    const float span_rad = std::max(el_max - el_min, kTwoPi / static_cast<float>(usable));
+    bin_rad_ = std::sqrt(span_rad * kTwoPi / static_cast<float>(usable));
+    cols_ = std::max(1, static_cast<int>(std::ceil(kTwoPi / bin_rad_)));
+    bin_rad_ = kTwoPi / static_cast<float>(cols_);  // a whole number of columns fills the turn
+    elevation_min_rad_ = el_min;
+    rows_ = static_cast<int>(std::floor((el_max - el_min) / bin_rad_)) + 1;
+    ranges_.assign(static_cast<std::size_t>(rows_) * static_cast<std::size_t>(cols_), 0.0f);
+    for (std::size_t i = 0; i < n; ++i) {
+        const float r = range_m[i];
+        if (r == 0.0f) continue;
+        const int row = std::clamp(
+            static_cast<int>((elevation_rad[i] - elevation_min_rad_) / bin_rad_), 0, rows_ - 1);
+        const int col =
+            std::clamp(static_cast<int>((azimuth_rad[i] + kTwoPi / 2) / bin_rad_), 0, cols_ - 1);
+        float& bin = ranges_[static_cast<std::size_t>(row) * cols_ + col];
+        if (bin == 0.0f || r < bin) bin = r;
+    }
+}
+
+RangeLookup RangeImage::nearest_around(const Eigen::Vector3f& direction_sensor,
+                                       int radius_bins) const {
+    RangeLookup result;
+    if (ranges_.empty()) return result;
+    const float el = (elevation_of(direction_sensor) - elevation_min_rad_) / bin_rad_;
+    if (el < -static_cast<float>(radius_bins) || el >= static_cast<float>(rows_ + radius_bins)) {
+        return result;
+    }
+    const int row = static_cast<int>(std::floor(el));
+    const int col = static_cast<int>((azimuth_of(direction_sensor) + kTwoPi / 2) / bin_rad_);
+    float nearest = 0.0f;
+    for (int r = std::max(0, row - radius_bins); r <= std::min(rows_ - 1, row + radius_bins); ++r) {
+        const float* line = ranges_.data() + static_cast<std::size_t>(r) * cols_;
+        for (int dc = -radius_bins; dc <= radius_bins; ++dc) {
+            int c = (col + dc) % cols_;
+            if (c < 0) c += cols_;
+            const float range = line[c];
+            if (range == 0.0f) continue;
+            ++result.returns;
+            if (nearest == 0.0f || range < nearest) nearest = range;
+        }
+    }
+    result.min_range_m = nearest;
+    return result;
+}
+
+}  // namespace shine
