@@ -99,7 +99,7 @@ void BatchMapper::finish_scans() {
                 points.push_back(rays_.endpoint(r));
             }
         }
-        kept.add_scan(rays_.origin_of_ray(begin), points);
+        kept.add_scan(rays_.origin_of_scan(s), points);
     }
     rays_ = std::move(kept);
     votes_ = {};

@@ -179,6 +179,14 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
     profile.run[Stage::kNormals] = stats.normals_seconds;
     profile.run[Stage::kSample] = stats.sample_seconds;
     profile.run[Stage::kTrain] = stats.train_seconds - stats.sample_seconds;
+    // With the dynamic-point filter the map is allocated once, after every scan has voted
+    // (BatchMapper::finish_scans): what the frames did not allocate ran once for the run.
+    double frames_allocate_seconds = 0.0;
+    for (const StageSeconds& frame : profile.frames) {
+        frames_allocate_seconds += frame[Stage::kAllocate];
+    }
+    profile.run[Stage::kAllocate] =
+        std::max(0.0, stats.allocate_seconds - frames_allocate_seconds);
     return result;
 }
 

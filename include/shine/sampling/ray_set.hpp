@@ -20,6 +20,8 @@ class RaySet {
     const Eigen::Vector3f& origin_of_ray(std::size_t ray) const {
         return origins_[scan_of_ray_[ray]];
     }
+    /// Sensor origin of scan s (also of a scan without rays).
+    const Eigen::Vector3f& origin_of_scan(std::uint32_t scan) const { return origins_[scan]; }
     std::uint32_t scan_of_ray(std::size_t ray) const { return scan_of_ray_[ray]; }
     /// Unit surface normal at the ray's endpoint, oriented towards the sensor; zero when unknown
     /// (the default; see surface_normals.hpp).
