@@ -101,6 +101,8 @@ int run_bench(const BenchOptions& opt) {
     if (opt.threads >= 0) config.shine.threads = opt.threads;
     if (opt.iterations >= 0) config.shine.iterations = opt.iterations;
     if (opt.seed >= 0) config.shine.seed = static_cast<std::uint64_t>(opt.seed);
+    // Scored on held-out real scans against TSDF fusion as VDBFusion runs it: every point fused.
+    if (opt.holdout_every > 0) config.tsdf.preprocess.voxel_downsample_m = 0.0;
     for (const double size_m : config.sizes_m) {
         shine_config_at(config, size_m);
         tsdf_config_at(config, size_m);
@@ -116,9 +118,6 @@ int run_bench(const BenchOptions& opt) {
     ScanSequence sequence = ScanSequence::open(data, seq_options);
     if (opt.holdout_every > 0) {
         config.heldout_frames = split_holdout(sequence, opt.holdout_every).heldout;
-        // Scored on real scans against TSDF fusion as VDBFusion runs it: every point fused.
-        config.tsdf.preprocess.voxel_downsample_m = 0.0;
-        tsdf_config_at(config, config.sizes_m.front());  // still valid
     }
     const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
     std::unique_ptr<TriangleMesh> reference;

@@ -172,9 +172,8 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
                     record.yaw_hypotheses = config_.icp_yaw_hypotheses;
                 }
                 result = best.result;
-                const Eigen::Isometry3d from = best.pose;
                 record.icp_inlier_ratio = best.inlier_ratio;
-                sdf_start = from;
+                sdf_start = best.pose;
                 icp_found_start = result.accepted();
             }
         }

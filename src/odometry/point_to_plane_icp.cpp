@@ -98,6 +98,13 @@ long ReferencePlanes::nearest(const Eigen::Vector3d& query_world, double max_dis
     return count == 1 ? long(found[0].index) : -1;
 }
 
+long ReferencePlanes::plane_residual(const Eigen::Vector3d& point_world, double max_distance_m,
+                                     double& r_m) const {
+    const long j = nearest(point_world, max_distance_m);
+    if (j >= 0) r_m = normals_world_[j].dot(point_world - points_world_[j]);
+    return j;
+}
+
 RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& points_sensor,
                                            const Eigen::Isometry3d& T_world_sensor_initial,
                                            const ReferencePlanes& reference,
@@ -116,12 +123,10 @@ RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& p
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256),
                           [&](const tbb::blocked_range<std::size_t>& range) {
                               for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                                  const long j = reference.nearest(
-                                      points_world[i], config.max_correspondence_distance_m);
+                                  const long j = reference.plane_residual(
+                                      points_world[i], config.max_correspondence_distance_m, r[i]);
                                   if (j < 0) continue;
-                                  const Eigen::Vector3d& n_w = reference.normals_world()[j];
-                                  r[i] = n_w.dot(points_world[i] - reference.points_world()[j]);
-                                  g[i] = n_w;
+                                  g[i] = reference.normals_world()[j];
                                   valid[i] = 1;
                               }
                           });
@@ -137,11 +142,10 @@ double point_to_plane_inlier_ratio(const std::vector<Eigen::Vector3f>& points_se
     if (points_sensor.empty()) return 0.0;
     std::size_t inliers = 0;
     for (const Eigen::Vector3f& p : points_sensor) {
-        const Eigen::Vector3d p_world = T_world_sensor * p.cast<double>();
-        const long j = reference.nearest(p_world, max_correspondence_m);
-        if (j < 0) continue;
-        const double r = reference.normals_world()[j].dot(p_world - reference.points_world()[j]);
-        if (std::abs(r) <= inlier_m) ++inliers;
+        double r_m = 0.0;
+        const long j =
+            reference.plane_residual(T_world_sensor * p.cast<double>(), max_correspondence_m, r_m);
+        if (j >= 0 && std::abs(r_m) <= inlier_m) ++inliers;
     }
     return static_cast<double>(inliers) / static_cast<double>(points_sensor.size());
 }

@@ -49,6 +49,10 @@ class ReferencePlanes {
     /// Index (into points_world()) of the nearest matchable point within max_distance_m of
     /// `query_world`, or -1.
     long nearest(const Eigen::Vector3d& query_world, double max_distance_m) const;
+    /// ICP's residual at `point_world`: the index of its match (nearest(), -1 for none) and,
+    /// for a match, r_m = n . (point - q), the signed distance to the match's tangent plane.
+    long plane_residual(const Eigen::Vector3d& point_world, double max_distance_m,
+                        double& r_m) const;
 
   private:
     void build_tree();
