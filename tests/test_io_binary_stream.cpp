@@ -16,6 +16,8 @@ using shine::BinaryWriter;
 
 namespace {
 
+/// Each test writes files of its own names: ctest runs the tests of this file as parallel
+/// processes.
 fs::path write_file(const std::string& name, const std::string& bytes) {
     const fs::path dir = fs::path(SHINE_TEST_TMP_DIR) / "binary_stream";
     fs::create_directories(dir);
@@ -50,7 +52,7 @@ std::string error_of(F read) {
 }  // namespace
 
 TEST(BinaryStream, RecordsReadBackExactly) {
-    BinaryReader in(write_file("good.bin", sample_records()), "state");
+    BinaryReader in(write_file("records.bin", sample_records()), "state");
     EXPECT_TRUE(in.next_is_tag("header"));
     EXPECT_FALSE(in.next_is_tag("head"));
     in.expect_tag("header");

@@ -321,23 +321,26 @@ TEST(DecoderFile, BuiltinPretrainedDecoderMatchesTheDefaultShape) {
     EXPECT_THROW(load_incremental_decoder(config), ConfigError);
 }
 
-TEST(IncrementalMapper, SameMapForAnyThreadCount) {
-    // Two scans of a ground patch with a post, mapped with 1 and with 2 threads.
-    const auto scan_at = [](double x) {
-        Scan scan;
-        scan.T_world_sensor.translation() = Eigen::Vector3d(x, 0.0, 1.5);
-        for (int b = 0; b < 12; ++b) {
-            const double elevation = (-40.0 + 30.0 * b / 11) * M_PI / 180.0;
-            for (int a = 0; a < 360; ++a) {
-                const double azimuth = 2.0 * M_PI * a / 360;
-                const Eigen::Vector3d d(std::cos(elevation) * std::cos(azimuth),
-                                        std::cos(elevation) * std::sin(azimuth),
-                                        std::sin(elevation));
-                scan.points_sensor.push_back(((1.5 / -d.z()) * d).cast<float>());
-            }
+namespace {
+/// A 12-beam sweep of flat ground (z = 0) seen from (x, 0, 1.5): endpoints within 11 m of x.
+Scan ground_scan_at(double x) {
+    Scan scan;
+    scan.T_world_sensor.translation() = Eigen::Vector3d(x, 0.0, 1.5);
+    for (int b = 0; b < 12; ++b) {
+        const double elevation = (-40.0 + 30.0 * b / 11) * M_PI / 180.0;
+        for (int a = 0; a < 360; ++a) {
+            const double azimuth = 2.0 * M_PI * a / 360;
+            const Eigen::Vector3d d(std::cos(elevation) * std::cos(azimuth),
+                                    std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+            scan.points_sensor.push_back(((1.5 / -d.z()) * d).cast<float>());
         }
-        return scan;
-    };
+    }
+    return scan;
+}
+}  // namespace
+
+TEST(IncrementalMapper, SameMapForAnyThreadCount) {
+    // Two scans of a ground patch, mapped with 1 and with 2 threads.
     std::vector<std::vector<float>> features;
     std::vector<std::vector<float>> importances;
     for (int threads : {1, 2}) {
@@ -347,8 +350,8 @@ TEST(IncrementalMapper, SameMapForAnyThreadCount) {
         config.incremental.iterations_per_frame = 10;
         config.trainer.batch_size = 1024;
         IncrementalMapper mapper(config);
-        mapper.add_scan(scan_at(0.0));
-        mapper.add_scan(scan_at(0.7));
+        mapper.add_scan(ground_scan_at(0.0));
+        mapper.add_scan(ground_scan_at(0.7));
         features.push_back(mapper.sdf().octree.features().to_floats());
         importances.push_back(mapper.importance().importances());
         EXPECT_EQ(mapper.frames().size(), 2u);
@@ -358,17 +361,115 @@ TEST(IncrementalMapper, SameMapForAnyThreadCount) {
     EXPECT_EQ(importances[0], importances[1]);
 }
 
-TEST(IncrementalMapper, ReplayBeyondTheNormalWindowIsRejectedNamingTheKey) {
-    MapperConfig config;
-    config.incremental.normal_window_frames = 4;
-    config.incremental.replay_frames = 5;  // the window keeps only 4 scans
-    try {
+TEST(IncrementalTrainer, FocusedShareDrawsOnlyFromTheFocusedRange) {
+    // Two scans 60 m apart share no feature row: with the whole share on the second scan's rays a
+    // step leaves the first scan's rows as they were; half the share trains both; a zero share
+    // is the unfocused step, bit for bit.
+    const Scan first = ground_scan_at(0.0);
+    const Scan second = ground_scan_at(60.0);
+    const auto world = [](const Scan& scan) {
+        std::vector<Eigen::Vector3f> points;
+        for (const auto& p : scan.points_sensor) {
+            points.push_back((scan.T_world_sensor * p.cast<double>()).cast<float>());
+        }
+        return points;
+    };
+    const auto run = [&](const RayFocus* focus, std::size_t& first_rows) {
+        NeuralSdf sdf(FeatureOctreeConfig{}, DecoderConfig{8, {16, 16}, 3});
+        RaySet rays;
+        rays.add_scan(first.T_world_sensor.translation().cast<float>(), world(first));
+        sdf.octree.allocate_cells(world(first));
+        first_rows = sdf.octree.num_corners();
+        rays.add_scan(second.T_world_sensor.translation().cast<float>(), world(second));
+        sdf.octree.allocate_cells(world(second));
+        TrainerConfig config;
+        config.batch_size = 2048;
+        config.train_decoder = false;
+        Trainer trainer(sdf, config, SamplingConfig{});
+        const std::vector<float> before = sdf.octree.features().to_floats();
+        if (focus) {
+            trainer.step(rays, 0, rays.num_rays(), 0, nullptr, *focus);
+        } else {
+            trainer.step(rays, 0, rays.num_rays(), 0);
+        }
+        const std::vector<float> after = sdf.octree.features().to_floats();
+        return std::make_pair(before, after);
+    };
+    std::size_t first_rows = 0;
+    const std::size_t second_begin = ground_scan_at(0.0).points_sensor.size();
+    const int dim = FeatureOctreeConfig{}.feature_dim;
+    const auto changed = [&](const std::pair<std::vector<float>, std::vector<float>>& r,
+                             std::size_t row_begin, std::size_t row_end) {
+        std::size_t n = 0;
+        for (std::size_t i = row_begin * dim; i < row_end * dim; ++i) {
+            n += r.first[i] != r.second[i];
+        }
+        return n;
+    };
+    const RayFocus all_on_second{second_begin, 1.0f};
+    const auto focused = run(&all_on_second, first_rows);
+    const std::size_t rows = focused.first.size() / dim;
+    ASSERT_GT(first_rows, 0u);
+    ASSERT_GT(rows, first_rows);
+    EXPECT_EQ(changed(focused, 0, first_rows), 0u);
+    EXPECT_GT(changed(focused, first_rows, rows), 0u);
+
+    const RayFocus half_on_second{second_begin, 0.5f};
+    const auto half = run(&half_on_second, first_rows);
+    EXPECT_GT(changed(half, 0, first_rows), 0u);
+    EXPECT_GT(changed(half, first_rows, rows), 0u);
+
+    const RayFocus none{second_begin, 0.0f};
+    const auto unfocused = run(nullptr, first_rows);
+    EXPECT_EQ(run(&none, first_rows).second, unfocused.second);
+}
+
+TEST(IncrementalMapper, ReplayedScansBeyondTheNormalWindowTrainAgain) {
+    // Scans 60 m apart: only replay can reach the first scan's feature rows from the later ones.
+    // With the normal window at 2 scans and replay_frames 4, the fourth scan still trains the
+    // first scan's rows; with replay_frames 1 (the paper's current scan alone) it does not.
+    const auto first_rows_change = [](int replay_frames) {
+        MapperConfig config;
+        config.preprocess.min_range_m = 0.5;
+        config.dynamic.enabled = false;
+        config.incremental.iterations_per_frame = 4;
+        config.incremental.batch_size = 2048;
+        config.incremental.normal_window_frames = 2;
+        config.incremental.replay_frames = replay_frames;
+        config.incremental.replay_current_share = 0.25f;
         IncrementalMapper mapper(config);
-        FAIL() << "expected a ConfigError";
-    } catch (const ConfigError& e) {
-        EXPECT_NE(std::string(e.what()).find("incremental.replay_frames"), std::string::npos)
-            << e.what();
-    }
-    config.incremental.replay_frames = 4;
+        mapper.add_scan(ground_scan_at(0.0));
+        const std::size_t first_rows = mapper.sdf().octree.num_corners();
+        mapper.add_scan(ground_scan_at(60.0));
+        mapper.add_scan(ground_scan_at(120.0));
+        const std::vector<float> before = mapper.sdf().octree.features().to_floats();
+        mapper.add_scan(ground_scan_at(180.0));
+        const std::vector<float> after = mapper.sdf().octree.features().to_floats();
+        std::size_t changed = 0;
+        const std::size_t dim = static_cast<std::size_t>(config.octree.feature_dim);
+        for (std::size_t i = 0; i < first_rows * dim; ++i) changed += before[i] != after[i];
+        return changed;
+    };
+    EXPECT_EQ(first_rows_change(1), 0u);
+    EXPECT_GT(first_rows_change(4), 0u);
+}
+
+TEST(IncrementalMapper, InvalidReplaySettingsAreRejectedNamingTheKey) {
+    const auto expect_rejected = [](const MapperConfig& config, const char* key) {
+        try {
+            IncrementalMapper mapper(config);
+            FAIL() << "expected a ConfigError for " << key;
+        } catch (const ConfigError& e) {
+            EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+        }
+    };
+    MapperConfig config;
+    config.incremental.replay_frames = 0;
+    expect_rejected(config, "incremental.replay_frames");
+    config.incremental.replay_frames = 40;  // more than the normal window: allowed
     EXPECT_NO_THROW(IncrementalMapper{config});
+    config.incremental.replay_current_share = 1.5f;
+    expect_rejected(config, "incremental.replay_current_share");
+    config.incremental.replay_current_share = -0.1f;
+    expect_rejected(config, "incremental.replay_current_share");
 }

@@ -261,6 +261,7 @@ std::string forgetting_report_json(const ForgettingReport& report, const Forgett
     j["threads"] = report.threads;
     j["leaf_size_m"] = config.mapper.octree.leaf_size_m;
     j["iterations_per_frame"] = config.mapper.incremental.iterations_per_frame;
+    j["replay_frames"] = config.mapper.incremental.replay_frames;
     j["importance_cap"] = config.mapper.incremental.importance.importance_cap;
     j["decoder_weights"] = config.mapper.incremental.decoder_weights;
     j["runs"] = nlohmann::json::array();

@@ -80,12 +80,13 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     if (inc.importance_ray_stride < 1) {
         throw ConfigError("incremental.importance_ray_stride must be at least 1");
     }
-    if (inc.replay_frames < 1 || inc.replay_frames > inc.normal_window_frames) {
-        throw ConfigError(
-            "incremental.replay_frames must be between 1 and "
-            "incremental.normal_window_frames (" +
-            std::to_string(inc.normal_window_frames) + "), got " +
-            std::to_string(inc.replay_frames));
+    if (inc.replay_frames < 1) {
+        throw ConfigError("incremental.replay_frames must be at least 1, got " +
+                          std::to_string(inc.replay_frames));
+    }
+    if (!(inc.replay_current_share >= 0.0f && inc.replay_current_share <= 1.0f)) {
+        throw ConfigError("incremental.replay_current_share must be between 0 and 1, got " +
+                          std::to_string(inc.replay_current_share));
     }
     if (inc.normal_window_frames < 1) {
         throw ConfigError("incremental.normal_window_frames must be at least 1");
@@ -132,7 +133,10 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
     window_votes_.push_back(std::move(votes));
     window_.push_back(std::move(current));
     window_normals_.emplace_back();
-    while (window_.size() > static_cast<std::size_t>(config_.incremental.normal_window_frames)) {
+    // The window holds the scans the normals and the replay need, the current one last.
+    const std::size_t window_frames = static_cast<std::size_t>(
+        std::max(config_.incremental.normal_window_frames, config_.incremental.replay_frames));
+    while (window_.size() > window_frames) {
         window_.pop_front();
         window_normals_.pop_front();
         window_votes_.pop_front();
@@ -163,9 +167,12 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     frame.dynamic_dropped = votes.size() - kept;
     current.points_map.resize(kept);
     votes.resize(kept);
-    // The window's points this scan sees through are dropped from the window (with their normals),
-    // so that replay and the normals of later scans no longer use them.
-    for (std::size_t w = 0; w < window_.size(); ++w) {
+    // The points of the normal window's scans that this scan sees through are dropped (with their
+    // normals), so that replay and the normals of later scans no longer use them. Older replayed
+    // scans had as many scans after them to vote.
+    const std::size_t normal_scans =
+        std::min<std::size_t>(window_.size(), config_.incremental.normal_window_frames);
+    for (std::size_t w = window_.size() - normal_scans; w < window_.size(); ++w) {
         std::vector<Eigen::Vector3f>& points = window_[w].points_map;
         std::vector<FreeSpaceVotes>& past_votes = window_votes_[w];
         std::vector<Eigen::Vector3f>& normals = window_normals_[w];
@@ -194,35 +201,50 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
 
 std::size_t IncrementalMapper::window_rays_with_normals(RaySet& rays,
                                                         IncrementalFrameStats& frame) {
-    for (const ScanInMap& s : window_) rays.add_scan(s.origin_map, s.points_map);
-    const std::size_t ray_begin = rays.first_ray(static_cast<std::uint32_t>(window_.size() - 1));
-    const std::size_t ray_end = rays.num_rays();
-
-    // 3. Normals of the current scan, among the window's endpoints; the replayed scans keep the
-    // ones they got when they were current.
+    const std::size_t n = window_.size();
+    // 3. Normals of the current scan, among the endpoints of the last normal_window_frames scans;
+    // the replayed scans keep the ones they got when they were current.
     const auto start = std::chrono::steady_clock::now();
     if (config_.normals.enabled) {
-        std::vector<Eigen::Vector3f> normals =
-            ray_end > ray_begin ? estimate_ray_normals(rays, config_.normals, ray_begin, ray_end)
-                                : std::vector<Eigen::Vector3f>(ray_end, Eigen::Vector3f::Zero());
-        for (std::size_t r = ray_begin; r < ray_end; ++r) {
+        const std::size_t normal_scans =
+            std::min<std::size_t>(n, config_.incremental.normal_window_frames);
+        RaySet neighbours;
+        for (std::size_t w = n - normal_scans; w < n; ++w) {
+            neighbours.add_scan(window_[w].origin_map, window_[w].points_map);
+        }
+        const std::size_t begin =
+            neighbours.first_ray(static_cast<std::uint32_t>(normal_scans - 1));
+        const std::size_t end = neighbours.num_rays();
+        const std::vector<Eigen::Vector3f> normals =
+            end > begin ? estimate_ray_normals(neighbours, config_.normals, begin, end)
+                        : std::vector<Eigen::Vector3f>(end, Eigen::Vector3f::Zero());
+        for (std::size_t r = begin; r < end; ++r) {
             frame.rays_with_normal += normals[r].squaredNorm() > 0.5f;
         }
-        window_normals_.back().assign(normals.begin() + static_cast<std::ptrdiff_t>(ray_begin),
+        window_normals_.back().assign(normals.begin() + static_cast<std::ptrdiff_t>(begin),
                                       normals.end());
-        const std::size_t replayed =
-            std::min<std::size_t>(window_.size(), std::size_t(config_.incremental.replay_frames));
-        for (std::size_t w = window_.size() - replayed; w + 1 < window_.size(); ++w) {
+    }
+    frame.normals_seconds = seconds_since(start);
+
+    // The training rays: the last replay_frames scans, the current one last, each with its normals.
+    const std::size_t replayed =
+        std::min<std::size_t>(n, static_cast<std::size_t>(config_.incremental.replay_frames));
+    for (std::size_t w = n - replayed; w < n; ++w) {
+        rays.add_scan(window_[w].origin_map, window_[w].points_map);
+    }
+    if (config_.normals.enabled) {
+        std::vector<Eigen::Vector3f> normals(rays.num_rays(), Eigen::Vector3f::Zero());
+        for (std::size_t w = n - replayed; w < n; ++w) {
             const std::vector<Eigen::Vector3f>& stored = window_normals_[w];
-            if (stored.empty()) continue;  // a scan from before a resume without replay
+            // Empty: a scan from before a resume without replay.
+            if (stored.size() != window_[w].points_map.size()) continue;
             std::copy(stored.begin(), stored.end(),
-                      normals.begin() + static_cast<std::ptrdiff_t>(
-                                            rays.first_ray(static_cast<std::uint32_t>(w))));
+                      normals.begin() + static_cast<std::ptrdiff_t>(rays.first_ray(
+                                            static_cast<std::uint32_t>(w - (n - replayed)))));
         }
         rays.set_normals(std::move(normals));
     }
-    frame.normals_seconds = seconds_since(start);
-    return ray_begin;
+    return rays.first_ray(static_cast<std::uint32_t>(replayed - 1));
 }
 
 void IncrementalMapper::replay_scan(const Scan& scan) {
@@ -245,10 +267,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     RaySet rays;
     const std::size_t ray_begin = window_rays_with_normals(rays, frame);
     const std::size_t ray_end = rays.num_rays();
-    const std::size_t replayed =
-        std::min<std::size_t>(window_.size(), std::size_t(config_.incremental.replay_frames));
-    const std::size_t train_begin =
-        rays.first_ray(static_cast<std::uint32_t>(window_.size() - replayed));
+    const RayFocus focus{ray_begin, config_.incremental.replay_current_share};
 
     // 4. Train on the current scan (and the replayed ones before it).
     auto start = std::chrono::steady_clock::now();
@@ -268,7 +287,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
             const double ratio =
                 final_ratio + (1.0 - final_ratio) * 0.5 * (1.0 + std::cos(M_PI * progress));
             trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
-            last = trainer_->step(rays, train_begin, ray_end, iteration_++, regularizer);
+            last = trainer_->step(rays, 0, ray_end, iteration_++, regularizer, focus);
         }
         frame.bce = last.bce;
         frame.regularization = last.regularization;

@@ -122,7 +122,8 @@ void Trainer::load_state(BinaryReader& in) {
 }
 
 TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::size_t ray_end,
-                             std::uint64_t iteration, const ImportanceWeights* regularizer) {
+                             std::uint64_t iteration, const ImportanceWeights* regularizer,
+                             const RayFocus& focus) {
     TrainStepStats stats;
     if (ray_end <= ray_begin) return stats;
     const int dim = sdf_.octree.feature_dim();
@@ -135,6 +136,10 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
 
     // Phase 1: each chunk draws its rays and their samples from its own stream.
     auto start = std::chrono::steady_clock::now();
+    const bool focused = focus.share > 0.0f && focus.begin > ray_begin && focus.begin < ray_end;
+    // A ray is focused when a 24-bit draw falls below the share (exact for multiples of 2^-24).
+    const auto focus_threshold =
+        static_cast<std::uint64_t>(std::ldexp(static_cast<double>(focus.share), 24));
     tbb::parallel_for(0, num_chunks, [&](int c) {
         Chunk& chunk = chunks_[c];
         const int ray_lo = rays_per_batch * c / num_chunks;
@@ -142,7 +147,9 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         chunk.samples.resize(std::size_t(ray_hi - ray_lo) * per_ray);
         Pcg32 rng(stream_seed(config_.seed, iteration, static_cast<std::uint64_t>(c)));
         for (int r = ray_lo; r < ray_hi; ++r) {
-            const std::size_t ray = ray_begin + rng.below64(ray_end - ray_begin);
+            const bool in_focus = focused && rng.below64(std::uint64_t{1} << 24) < focus_threshold;
+            const std::size_t from = in_focus ? focus.begin : ray_begin;
+            const std::size_t ray = from + rng.below64(ray_end - from);
             sample_ray(rays.origin_of_ray(ray), rays.endpoint(ray), rays.normal(ray), sampling_,
                        rng, chunk.samples.data() + std::size_t(r - ray_lo) * per_ray);
         }

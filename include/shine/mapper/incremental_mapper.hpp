@@ -1,5 +1,6 @@
 // Incremental mapping without forgetting (paper Sec. III, "Incremental Mapping Without
-// Forgetting"): scans arrive one by one and only the current scan is used for training.
+// Forgetting"): scans arrive one by one; each trains the map with its own rays (and, with
+// incremental.replay_frames > 1, those of the scans just before it).
 //
 // Per scan (add_scan):
 //   1. preprocess it and move it into the map frame (the first scan fixes the map origin);
@@ -8,10 +9,13 @@
 //      parked car seen first is kept), and drop the points of the normal window's earlier scans
 //      that this scan sees through, so that they are not trained again;
 //      then grow the octree around its points (new rows: Omega = 0);
-//   3. estimate its endpoint normals among its own and the last few scans' endpoints;
-//   4. run incremental.iterations_per_frame steps on rays drawn from this scan only (surface
-//      band incremental.surface_band_m, learning rate decaying over the scan's steps), the loss
-//      adding lambda_r * sum Omega_i |theta_i - theta*_i|^2 over the rows used (Eq. (5));
+//   3. estimate its endpoint normals among its own and the last normal_window_frames scans'
+//      endpoints;
+//   4. run incremental.iterations_per_frame steps on rays drawn from this scan, or with
+//      replay_frames K > 1 from the last K scans (a replay_current_share of each step's rays from
+//      this scan alone; the earlier scans with the normals they got when current), surface band
+//      incremental.surface_band_m, learning rate decaying over the scan's steps, the loss adding
+//      lambda_r * sum Omega_i |theta_i - theta*_i|^2 over the rows used (Eq. (5));
 //   5. with lambda_r > 0: one pass over the scan's samples (each ray once) adds
 //      (1/N) sum_k |dL_bce/dtheta_i| to Omega_i (capped at Omega_m, Eq. (4); N = the pass's
 //      sample count, see importance_weights.hpp); the anchors theta* are the rows' values when
@@ -84,7 +88,8 @@ class IncrementalMapper {
     const IncrementalFrameStats& add_scan(const Scan& scan);
 
     /// Resuming a checkpoint: steps 1-2 only (preprocess, grow the map, keep the scan in the
-    /// normal window), which rebuild the map's structure and window as add_scan() left them. Call
+    /// window; with replay, its normals as well), which rebuild the map's structure and window as
+    /// add_scan() left them. Call
     /// it for each scan the checkpoint had integrated, then load_state().
     void replay_scan(const Scan& scan);
 
@@ -121,9 +126,10 @@ class IncrementalMapper {
     /// returns the votes of `current`'s kept points.
     std::vector<FreeSpaceVotes> drop_dynamic_points(const Scan& scan, ScanInMap& current,
                                                     IncrementalFrameStats& frame);
-    /// The window's rays (the current scan last) with every scan's normals: the earlier scans'
-    /// as stored, the current scan's estimated now (step 3) and stored for the scans after it.
-    /// Returns the current scan's first ray.
+    /// Step 3 and the training rays: estimates the current scan's normals among the last
+    /// normal_window_frames scans and stores them for replay; fills `rays` with the last
+    /// replay_frames scans (the current one last), each with its stored normals. Returns the
+    /// current scan's first ray in `rays`.
     std::size_t window_rays_with_normals(RaySet& rays, IncrementalFrameStats& frame);
     /// Throws Error naming `what` once release_training_state() has run.
     void require_training_state(const char* what) const;
@@ -132,7 +138,8 @@ class IncrementalMapper {
     std::unique_ptr<NeuralSdf> sdf_;
     std::unique_ptr<Trainer> trainer_;
     ImportanceWeights importance_;
-    std::deque<ScanInMap> window_;  ///< the current scan last
+    /// The last max(normal_window_frames, replay_frames) scans, the current one last.
+    std::deque<ScanInMap> window_;
     /// The endpoint normals of window_'s scans, each estimated when its scan was the current one
     /// (empty with normals disabled).
     std::deque<std::vector<Eigen::Vector3f>> window_normals_;

@@ -69,6 +69,13 @@ struct TrainStepStats {
     std::size_t drawn_samples = 0;
 };
 
+/// Part of a step's rays drawn from a sub-range alone: incremental mode's current scan among the
+/// replayed ones (IncrementalConfig::replay_current_share).
+struct RayFocus {
+    std::size_t begin = 0;  ///< the focused rays are [begin, ray_end) of the step's range
+    float share = 0.0f;     ///< of the step's rays, drawn from the focused range (0: none)
+};
+
 class Trainer {
   public:
     Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConfig& sampling);
@@ -89,9 +96,12 @@ class Trainer {
 
     /// One iteration on rays drawn uniformly from [ray_begin, ray_end) of `rays`. With a
     /// `regularizer` (incremental mode) the loss adds its lambda_r * L_r over the feature rows the
-    /// batch touched (paper Eq. (5)); without one the step is exactly the batch-mode step.
+    /// batch touched (paper Eq. (5)); without one the step is exactly the batch-mode step. With a
+    /// `focus` inside the range, each ray comes from [focus.begin, ray_end) with probability
+    /// focus.share and from the whole range otherwise.
     TrainStepStats step(const RaySet& rays, std::size_t ray_begin, std::size_t ray_end,
-                        std::uint64_t iteration, const ImportanceWeights* regularizer = nullptr);
+                        std::uint64_t iteration, const ImportanceWeights* regularizer = nullptr,
+                        const RayFocus& focus = {});
 
     /// The importance pass of paper Eq. (4): for every ray of [ray_begin, ray_end) once, draws its
     /// samples (from the stream importance_stream_seed(pass, ray)) and sums, per feature row,
