@@ -100,6 +100,31 @@ TEST(ScanOdometry, FirstScanIsTheWorldAndWarmUpScansRegisterByIcp) {
     EXPECT_NEAR(record.correction_m, truth.translation().norm(), 0.05);
 }
 
+TEST(ScanOdometry, MapRegistrationThatFailsKeepsIcpsPoseNotThePrediction) {
+    // After the warm-up ICP finds the start of the registration to the map; where that one is not
+    // accepted (here: a map without cells, so no point has an SDF value), ICP's pose stands.
+    OdometryConfig config;
+    config.icp_warmup_scans = 0;
+    ASSERT_TRUE(config.icp_before_sdf);
+    ScanOdometry odometry(config);
+    const NeuralSdf map = empty_map();
+    Scan first = room_scan(Eigen::Isometry3d::Identity());
+    odometry.estimate(first, map);
+    odometry.remember_scan(first);
+
+    Vector6d xi;
+    xi << 0.3, 0.2, 0.0, 0.0, 0.0, -0.03;
+    const Eigen::Isometry3d truth = se3_exp(xi);
+    const OdometryRecord& record = odometry.estimate(room_scan(truth), map);
+    EXPECT_EQ(record.tried, RegistrationMethod::kSdf);
+    EXPECT_FALSE(record.accepted);  // the last stage's verdict
+    EXPECT_EQ(record.source, PoseSource::kIcp);
+    EXPECT_GT(record.icp_inlier_ratio, 0.9);
+    const Eigen::Isometry3d error = truth.inverse() * odometry.poses().back();
+    EXPECT_LT(error.translation().norm(), kTranslationTolM);
+    EXPECT_LT(rotation_angle_rad(error), kRotationTolRad);
+}
+
 TEST(ScanOdometry, ScanWithoutPointsIsSkippedAtThePrediction) {
     ScanOdometry odometry(OdometryConfig{});
     const NeuralSdf map = empty_map();

@@ -197,7 +197,9 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
                 if (result.accepted()) from = result.T_world_sensor;
             }
         }
-        // 4. Accepted (the last stage), or the prediction.
+        // 4. The last stage's pose if it was accepted; else ICP's, when ICP found the SDF stage's
+        // start (a registration to the map that does not converge within max_iterations, e.g.
+        // where the map is thin, still has ICP's fit to the last scans); else the prediction.
         record.status = result.status;
         record.accepted = result.accepted();
         record.iterations = iterations;
@@ -208,6 +210,9 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
         if (record.accepted) {
             estimate = result.T_world_sensor;
             record.source = icp ? PoseSource::kIcp : PoseSource::kSdf;
+        } else if (icp_found_start) {
+            estimate = sdf_start;
+            record.source = PoseSource::kIcp;
         } else {
             record.source = PoseSource::kPrediction;
         }

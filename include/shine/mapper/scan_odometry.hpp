@@ -16,8 +16,9 @@
 //      (sdf_registration.hpp through NeuralSdfField), started from that ICP's result
 //      (icp_before_sdf, the default: the SDF is metric only near surfaces, so its basin is
 //      narrow) or coarse to fine from the prediction;
-//   4. a registration that is not accepted (RegistrationResult::accepted) leaves the prediction,
-//      and the record says so.
+//   4. a registration to the map that is not accepted (RegistrationResult::accepted) leaves ICP's
+//      pose when ICP found its start, else the prediction; the record says which (source) and
+//      why (tried, status).
 // The mapper then maps the scan at the estimated pose. Deterministic: the registration sums are
 // the same bits for any thread count.
 #pragma once
@@ -40,9 +41,9 @@ class BinaryWriter;
 /// Where a scan's estimated pose came from.
 enum class PoseSource : std::uint8_t {
     kFirst,       ///< the first scan: its given pose (identity without poses), the world frame
-    kIcp,         ///< accepted point-to-plane ICP
+    kIcp,         ///< accepted point-to-plane ICP (also when the SDF stage after it was not)
     kSdf,         ///< accepted registration to the neural map
-    kPrediction,  ///< the registration was not accepted: the constant-velocity prediction
+    kPrediction,  ///< no registration was accepted: the constant-velocity prediction
     kSkipped      ///< too few points: not registered, not mapped; pose = the prediction
 };
 
