@@ -134,10 +134,11 @@ TEST(FreeSpaceVotes, AMovedSensorVotesThroughItsPose) {
 }
 
 TEST(FreeSpaceVotes, DynamicNeedsEnoughAndAShareOfFreeVotes) {
-    DynamicPointConfig config;  // 2 votes, 30 %
+    DynamicPointConfig config;  // 2 votes, 40 %
     EXPECT_FALSE(is_dynamic({1, 0}, config));
     EXPECT_TRUE(is_dynamic({2, 0}, config));
-    EXPECT_TRUE(is_dynamic({3, 7}, config));   // 30 %
+    EXPECT_TRUE(is_dynamic({4, 6}, config));   // 40 %
+    EXPECT_FALSE(is_dynamic({3, 7}, config));  // 30 %
     EXPECT_FALSE(is_dynamic({2, 8}, config));  // 20 %
     EXPECT_FALSE(is_dynamic({0, 0}, config));
     config.min_free_share = 0.0f;
