@@ -134,10 +134,11 @@ TEST(FreeSpaceVotes, AMovedSensorVotesThroughItsPose) {
 }
 
 TEST(FreeSpaceVotes, DynamicNeedsEnoughAndAShareOfFreeVotes) {
-    DynamicPointConfig config;  // 2 votes, 30 %
+    DynamicPointConfig config;  // 2 votes, 40 %
     EXPECT_FALSE(is_dynamic({1, 0}, config));
     EXPECT_TRUE(is_dynamic({2, 0}, config));
-    EXPECT_TRUE(is_dynamic({3, 7}, config));   // 30 %
+    EXPECT_TRUE(is_dynamic({4, 6}, config));   // 40 %
+    EXPECT_FALSE(is_dynamic({3, 7}, config));  // 30 %
     EXPECT_FALSE(is_dynamic({2, 8}, config));  // 20 %
     EXPECT_FALSE(is_dynamic({0, 0}, config));
     config.min_free_share = 0.0f;
@@ -145,6 +146,43 @@ TEST(FreeSpaceVotes, DynamicNeedsEnoughAndAShareOfFreeVotes) {
     config = {};
     config.margin_m = 0.0f;
     EXPECT_THROW(check_dynamic_point_config(config), ConfigError);
+    config = {};
+    config.far_min_free_share = 0.0f;
+    EXPECT_THROW(check_dynamic_point_config(config), ConfigError);
+    config = {};
+    config.far_vote_frames = -1;
+    EXPECT_THROW(check_dynamic_point_config(config), ConfigError);
+}
+
+TEST(FreeSpaceVotes, FarVotesCountOnlyForPointsTheNearScansHardlyHit) {
+    DynamicPointConfig config;  // far: at most 1 near hit, 2 far free votes, 50 % of far votes
+    const auto votes = [](int free, int hit, int far_free, int far_hit) {
+        FreeSpaceVotes v;
+        v.free = static_cast<std::uint16_t>(free);
+        v.hit = static_cast<std::uint16_t>(hit);
+        v.far_free = static_cast<std::uint16_t>(far_free);
+        v.far_hit = static_cast<std::uint16_t>(far_hit);
+        return v;
+    };
+    EXPECT_TRUE(is_dynamic(votes(0, 0, 2, 2), config));  // an oncoming car seen far ahead
+    EXPECT_TRUE(is_dynamic(votes(1, 1, 3, 1), config));
+    EXPECT_FALSE(is_dynamic(votes(0, 2, 5, 0), config));  // the near scans hit it: static
+    EXPECT_FALSE(is_dynamic(votes(0, 0, 2, 3), config));  // 40 % of the far votes
+    EXPECT_FALSE(is_dynamic(votes(0, 0, 1, 0), config));  // one far scan is not enough
+    config.far_max_near_hits = 2;
+    EXPECT_TRUE(is_dynamic(votes(0, 2, 5, 0), config));
+
+    // add_free_space_votes counts far votes apart: a scan that sees a wall 5 m behind a point.
+    const RangeImage image(
+        spin_scan([](const Eigen::Vector3f& d) { return wall_range(d, 10.0f); }));
+    const std::vector<Eigen::Vector3f> point = {{5.0f, 0.0f, 0.0f}};
+    std::vector<FreeSpaceVotes> v(1);
+    add_free_space_votes(image, Eigen::Isometry3f::Identity(), point.data(), 1, config, v.data(),
+                         true);
+    EXPECT_EQ(v[0].far_free, 1);
+    EXPECT_EQ(v[0].free, 0);
+    add_free_space_votes(image, Eigen::Isometry3f::Identity(), point.data(), 1, config, v.data());
+    EXPECT_EQ(v[0].free, 1);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include "shine/mapper/batch_mapper.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <type_traits>
@@ -48,23 +49,26 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
         voter.T_sensor_map =
             map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m).inverse().cast<float>();
         voter.image = RangeImage(scan.points_sensor);
+        // Scans more than vote_frames apart vote as far scans (free_space_votes.hpp).
         const std::size_t begin = rays_.first_ray(index);
         for (const Voter& past : voters_) {
+            const bool far =
+                index - past.scan > static_cast<std::uint32_t>(config_.dynamic.vote_frames);
             if (!points_map.empty()) {
                 add_free_space_votes(past.image, past.T_sensor_map, &rays_.endpoint(begin),
-                                     points_map.size(), config_.dynamic, &votes_[begin]);
+                                     points_map.size(), config_.dynamic, &votes_[begin], far);
             }
             const std::size_t past_begin = rays_.first_ray(past.scan);
             const std::size_t past_count = rays_.first_ray(past.scan + 1) - past_begin;
             if (past_count == 0) continue;
             add_free_space_votes(voter.image, voter.T_sensor_map, &rays_.endpoint(past_begin),
-                                 past_count, config_.dynamic, &votes_[past_begin]);
+                                 past_count, config_.dynamic, &votes_[past_begin], far);
         }
         voters_.push_back(std::move(voter));
         scan_sources_.push_back(scan.source);
-        while (voters_.size() > static_cast<std::size_t>(config_.dynamic.vote_frames)) {
-            voters_.pop_front();
-        }
+        const std::size_t voting_frames = static_cast<std::size_t>(
+            std::max(config_.dynamic.vote_frames, config_.dynamic.far_vote_frames));
+        while (voters_.size() > voting_frames) voters_.pop_front();
         stats_.dynamic_seconds += seconds_since(vote_start);
     }
     stages[Stage::kPreprocess] = seconds_since(start);

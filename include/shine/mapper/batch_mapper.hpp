@@ -2,8 +2,9 @@
 // their points, then features and decoder are optimised jointly on rays drawn from every scan.
 //
 // With the dynamic-point filter (config.dynamic, free_space_votes.hpp) each scan's points are
-// voted on by the dynamic.vote_frames scans before and after it as the scans arrive (only that
-// many range images are held); the points other scans see through are dropped before training,
+// voted on by the dynamic.vote_frames scans before and after it, and by the scans up to
+// dynamic.far_vote_frames away as far voters, as the scans arrive (only that many range images
+// are held); the points other scans see through are dropped before training,
 // and the map is allocated around the kept points only, when training starts.
 #pragma once
 
@@ -101,7 +102,7 @@ class BatchMapper {
     RaySet rays_;
     MappingStats stats_;
     bool origin_set_ = false;
-    std::deque<Voter> voters_;           ///< the last dynamic.vote_frames scans
+    std::deque<Voter> voters_;  ///< the last max(dynamic.vote_frames, far_vote_frames) scans
     std::vector<FreeSpaceVotes> votes_;  ///< per ray, until the dynamic points are dropped
     std::vector<std::filesystem::path> scan_sources_;  ///< per scan, for the budget's message
     bool dynamic_dropped_ = false;

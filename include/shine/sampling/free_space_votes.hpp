@@ -18,6 +18,11 @@
 // min_free_share of the scans that voted (free or hit): a parked car seen by the scans of the
 // first half of a drive and seen through by the second half is dynamic; a surface that one noisy
 // scan missed is not.
+// Batch mode also asks scans farther away (far_vote_frames): an oncoming car seen far ahead, a
+// cyclist or a pedestrian is seen through only by scans more than vote_frames away, when the
+// sensor has come near. Their votes count apart and only for a point that the near scans hit at
+// most far_max_near_hits times: a static surface seen at a grazing angle from far viewpoints gets
+// false free votes there, but the near scans hit it (docs/movers.md).
 #pragma once
 
 #include <Eigen/Core>
@@ -40,22 +45,37 @@ struct DynamicPointConfig {
     float margin_m = 0.2f;
     float beam_margin = 2.0f;  ///< plus this many bin widths at the point's distance
     int min_free_votes = 2;
-    float min_free_share = 0.3f;  ///< of the free + hit votes
+    /// Of the free + hit votes. 40 %: on the real walk 28 % of the points 30 % would drop are
+    /// static (ground and walls at 3-10 m that the near scans hit too) with 30-40 % free votes,
+    /// against 0.7 % of the dropped points on the street's movers (docs/movers.md).
+    float min_free_share = 0.4f;
+    /// Batch mode: the scans from vote_frames + 1 to this many before and after a scan vote
+    /// apart (far votes); 0 (or at most vote_frames) asks no far scans. Incremental mode asks none.
+    int far_vote_frames = 25;
+    /// A point is dynamic by its far votes only if the near scans hit it at most this often.
+    int far_max_near_hits = 1;
+    /// Of the far free + far hit votes (at least min_free_votes far free votes too).
+    float far_min_free_share = 0.5f;
 };
 
-/// The votes a point received.
+/// The votes a point received: from the near scans (vote_frames) and the far ones.
 struct FreeSpaceVotes {
     std::uint16_t free = 0;
     std::uint16_t hit = 0;
+    std::uint16_t far_free = 0;
+    std::uint16_t far_hit = 0;
 };
 
 /// Adds the votes of one scan (its range image and the map-to-sensor transform of its pose) to
-/// the `count` points at `points_map` (votes[i] for points_map[i]). Parallel over the points.
+/// the `count` points at `points_map` (votes[i] for points_map[i]), as far votes if `far`.
+/// Parallel over the points.
 void add_free_space_votes(const RangeImage& image, const Eigen::Isometry3f& T_sensor_map,
                           const Eigen::Vector3f* points_map, std::size_t count,
-                          const DynamicPointConfig& config, FreeSpaceVotes* votes);
+                          const DynamicPointConfig& config, FreeSpaceVotes* votes,
+                          bool far = false);
 
-/// Whether votes make a point dynamic (min_free_votes, min_free_share).
+/// Whether votes make a point dynamic: by its near votes (min_free_votes, min_free_share), or by
+/// its far votes if the near scans hit it at most far_max_near_hits times (far_min_free_share).
 bool is_dynamic(const FreeSpaceVotes& votes, const DynamicPointConfig& config);
 
 /// Throws ConfigError naming the `dynamic.*` key of an out-of-range value.
