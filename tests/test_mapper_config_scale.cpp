@@ -86,6 +86,20 @@ TEST(MapperConfigScale, OutdoorTenCentimetreLeavesKeepTheRanges) {
     EXPECT_NEAR(c.preprocess.voxel_downsample_m, 0.1, kFloatToleranceM);
     EXPECT_NEAR(c.sampling.surface_band_m, 0.1, kFloatToleranceM);  // the scene's, not the leaf's
     EXPECT_NEAR(c.trainer.sigma_m, 0.025, kFloatToleranceM);
+    EXPECT_EQ(c.octree.num_levels, 4);  // the coarsest cell stays 0.8 m
+}
+
+TEST(MapperConfigScale, FinerOutdoorLeavesKeepTheCoarseLevels) {
+    EXPECT_EQ(finalized("map:\n  leaf_size_m: 0.05\n  scene: outdoor\n").octree.num_levels, 5);
+    // Less than a halving finer, or coarser: the default 3.
+    EXPECT_EQ(finalized("map:\n  leaf_size_m: 0.15\n").octree.num_levels, 3);
+    EXPECT_EQ(finalized("map:\n  leaf_size_m: 0.4\n").octree.num_levels, 3);
+    // Not measured indoors or on objects: unchanged there.
+    EXPECT_EQ(finalized("map:\n  scene: indoor\n").octree.num_levels, 3);
+    EXPECT_EQ(finalized("map:\n  scene: indoor\n  leaf_size_m: 0.02\n").octree.num_levels, 3);
+    EXPECT_EQ(finalized("map:\n  scene: object\n").octree.num_levels, 3);
+    // A set count wins, also when it is the default's.
+    EXPECT_EQ(finalized("map:\n  leaf_size_m: 0.1\n  num_levels: 3\n").octree.num_levels, 3);
 }
 
 TEST(MapperConfigScale, SetKeysDoNotFollow) {

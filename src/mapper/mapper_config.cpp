@@ -341,6 +341,17 @@ void apply_scale_free_defaults(MapperConfig& c) {
     if (!c.is_set("dynamic.margin_m") && c.dynamic.margin_m == outdoor.dynamic.margin_m) {
         c.dynamic.margin_m = 2.0f * c.sampling.surface_band_m;
     }
+    // Outdoors a leaf finer than 0.2 m keeps the coarse levels: one more level per halving of
+    // the leaf, so the coarsest cell stays 0.8 m (4 levels at 0.1 m). Measured on real scans
+    // and the streets at 0.1 m, in both modes (docs/heldout.md); not measured indoors or on
+    // objects, whose leaves follow their own size alone.
+    if (c.resolved_scene() == ScenePreset::kOutdoor && !c.is_set("map.num_levels") &&
+        c.octree.num_levels == outdoor.octree.num_levels &&
+        c.octree.leaf_size_m < outdoor.octree.leaf_size_m) {
+        const auto finer_levels = static_cast<int>(
+            std::lround(std::log2(outdoor.octree.leaf_size_m / c.octree.leaf_size_m)));
+        c.octree.num_levels = std::min(c.octree.num_levels + finer_levels, 8);
+    }
     // Exactly 1 at the outdoor leaf, so the street's lengths keep every bit.
     const double scale = c.octree.leaf_size_m / outdoor.octree.leaf_size_m;
     const auto follow_leaf = [&c, scale](auto& field, auto outdoor_value, const char* key) {

@@ -11,7 +11,8 @@
 //   - with the scene (map.scene, scene_preset.hpp; "auto" infers it from the leaf): the range
 //     crop preprocess.min_range_m / max_range_m, the surface band sampling.surface_band_m (the
 //     data's accuracy, not the resolution; at least half a leaf), and the leaf itself when only
-//     the scene is given.
+//     the scene is given; outdoors, for leaves finer than 0.2 m, map.num_levels (one more level
+//     per halving of the leaf, so the coarsest cell stays 0.8 m: 4 levels at 0.1 m).
 // A 0.1 m outdoor map thus thins and labels at half the street's lengths but keeps its 0.1 m band
 // and still sees 1.5 - 60 m; at 0.2 m outdoors nothing changes. Ratios, counts and the training
 // schedule (batch_schedule(), which already follows the leaf) are not lengths and stay as they are.
