@@ -48,13 +48,21 @@ GhostRun map_and_score(const fs::path& data, const fs::path& dir, const std::str
     return run;
 }
 
-TEST(CliDynamicFilter, MoversGhostsAppearWithoutTheFilterAndGoWithIt) {
-    const fs::path dir = test_dir_of("cli_dynamic_filter");
+/// A 15-scan street (seed 1) with 8 movers in dir/street; empty (after a test failure) if the
+/// simulator failed.
+fs::path simulate_movers_street(const fs::path& dir) {
     const fs::path data = dir / "street";
     fs::remove_all(data);
     const CliResult sim = run_shine(
         "simulate -o '" + data.string() + "' --frames 15 --seed 1 --movers 8 --no-progress", dir);
-    ASSERT_EQ(sim.exit_code, 0) << sim.output;
+    EXPECT_EQ(sim.exit_code, 0) << sim.output;
+    return sim.exit_code == 0 ? data : fs::path();
+}
+
+TEST(CliDynamicFilter, MoversGhostsAppearWithoutTheFilterAndGoWithIt) {
+    const fs::path dir = test_dir_of("cli_dynamic_filter");
+    const fs::path data = simulate_movers_street(dir);
+    ASSERT_FALSE(data.empty());
 
     const GhostRun off = map_and_score(data, dir, "off");
     const GhostRun on = map_and_score(data, dir, "on");
@@ -76,11 +84,8 @@ TEST(CliDynamicFilter, FarVotesRemoveGhostsTheNearScansCannot) {
     // shrink: 3 near scans per side, and the far ones up to 14 away or none. An oncoming car seen
     // far ahead is seen through only by the scans that come near it.
     const fs::path dir = test_dir_of("cli_dynamic_filter_far");
-    const fs::path data = dir / "street";
-    fs::remove_all(data);
-    const CliResult sim = run_shine(
-        "simulate -o '" + data.string() + "' --frames 15 --seed 1 --movers 8 --no-progress", dir);
-    ASSERT_EQ(sim.exit_code, 0) << sim.output;
+    const fs::path data = simulate_movers_street(dir);
+    ASSERT_FALSE(data.empty());
     const GhostRun near_only = map_and_score(data, dir, "on", "_near",
                                              "dynamic:\n  vote_frames: 3\n  far_vote_frames: 0\n");
     const GhostRun far = map_and_score(data, dir, "on", "_far",
