@@ -6,6 +6,7 @@
 #include <string>
 
 #include "shine/core/error.hpp"
+#include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
 
 namespace shine {
@@ -200,6 +201,22 @@ TEST(MapperConfigScale, AutomaticScheduleFollowsTheScenesCorners) {
     EXPECT_EQ(fine.batch_schedule(1660000).iterations, 707);
     // Set steps are never moved.
     EXPECT_EQ(finalized("training:\n  iterations: 1000\n").batch_schedule(1000).iterations, 1000);
+}
+
+TEST(BatchBakeDefault, FineOutdoorLeavesBakeInsideLevelOneUnlessSet) {
+    const auto mask_level_at = [](double leaf_size_m, const char* set_key, const char* scene) {
+        MapperConfig config;
+        config.octree.leaf_size_m = leaf_size_m;
+        config.scene = scene;
+        if (set_key) config.mark_set(set_key);
+        config.finalize();
+        apply_batch_bake_default(config);
+        return config.bake.mask_level;
+    };
+    EXPECT_EQ(mask_level_at(0.1, nullptr, "outdoor"), 1);
+    EXPECT_EQ(mask_level_at(0.2, nullptr, "outdoor"), 0);  // the street: unchanged
+    EXPECT_EQ(mask_level_at(0.1, "bake.mask_level", "outdoor"), 0);
+    EXPECT_EQ(mask_level_at(0.05, nullptr, "indoor"), 0);
 }
 
 }  // namespace

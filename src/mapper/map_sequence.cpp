@@ -46,6 +46,15 @@ bool train_with_progress(BatchMapper& mapper, int iterations, const std::string&
     return done;
 }
 
+void apply_batch_bake_default(MapperConfig& config) {
+    const double street_leaf_m = MapperConfig{}.octree.leaf_size_m;
+    if (!config.is_set("bake.mask_level") && config.bake.mask_level == 0 &&
+        config.octree.num_levels > 1 && config.resolved_scene() == ScenePreset::kOutdoor &&
+        config.octree.leaf_size_m < 0.75 * street_leaf_m) {
+        config.bake.mask_level = 1;
+    }
+}
+
 MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
                                const fs::path& out_dir) {
     MapProducts products;
@@ -87,6 +96,7 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
                          const RunControl* control) {
     MapperConfig config = config_in;
     config.finalize();
+    apply_batch_bake_default(config);
     ensure_directory(out_dir);
     SequenceMap result;
     result.mapper = std::make_unique<BatchMapper>(config);
@@ -185,8 +195,7 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
     for (const StageSeconds& frame : profile.frames) {
         frames_allocate_seconds += frame[Stage::kAllocate];
     }
-    profile.run[Stage::kAllocate] =
-        std::max(0.0, stats.allocate_seconds - frames_allocate_seconds);
+    profile.run[Stage::kAllocate] = std::max(0.0, stats.allocate_seconds - frames_allocate_seconds);
     return result;
 }
 
