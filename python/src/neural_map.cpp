@@ -242,7 +242,7 @@ class NeuralMap {
         const std::string file = path_string(path);
         const NeuralSdf& sdf = require_sdf("save()");
         py::gil_scoped_release release;
-        save_neural_map(file, sdf, config_to_yaml(config_));
+        save_neural_map(file, sdf, config_to_yaml(products_config()));
     }
 
     py::dict write_products(const py::object& out_dir) const {
@@ -253,7 +253,7 @@ class NeuralMap {
             py::gil_scoped_release release;
             const auto limit = limit_threads(config_.threads);
             ensure_directory(dir);
-            products = write_map_products(sdf, config_, dir);
+            products = write_map_products(sdf, products_config(), dir);
         }
         check_signals();
         py::dict out;
@@ -366,6 +366,10 @@ class NeuralMap {
                                  " mode: use either integrate() (incremental) or add_scan() + "
                                  "train() (batch) on one map");
     }
+
+    /// The configuration the products are made with: a batch map's is its mapper's (with the
+    /// batch bake default, as `shine map` writes it).
+    const MapperConfig& products_config() const { return batch_ ? batch_->config() : config_; }
 
     const NeuralSdf* current_sdf() const {
         if (batch_) return &batch_->sdf();

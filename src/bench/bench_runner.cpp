@@ -203,7 +203,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         progress.update(0, "save, bake, mesh");
         const fs::path dir = bench_run_dir(out_dir, BenchMethod::kShineVdb, size_m);
         ensure_directory(dir);
-        const MapProducts products = write_map_products(shine.sdf(), shine_config, dir);
+        const MapProducts products = write_map_products(shine.sdf(), shine.config(), dir);
         const MappingStats& stats = shine.stats();
         const double mapping_seconds = stats.load_seconds + stats.allocate_seconds +
                                        stats.normals_seconds + stats.train_seconds;

@@ -21,8 +21,18 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 }
 }  // namespace
 
+void apply_batch_bake_default(MapperConfig& config) {
+    const double street_leaf_m = MapperConfig{}.octree.leaf_size_m;
+    if (!config.is_set("bake.mask_level") && config.bake.mask_level == 0 &&
+        config.octree.num_levels > 1 && config.resolved_scene() == ScenePreset::kOutdoor &&
+        config.octree.leaf_size_m < 0.75 * street_leaf_m) {
+        config.bake.mask_level = 1;
+    }
+}
+
 BatchMapper::BatchMapper(const MapperConfig& config) : config_(config) {
     config_.finalize();
+    apply_batch_bake_default(config_);
     sdf_ = std::make_unique<NeuralSdf>(config_.octree, config_.decoder);
 }
 

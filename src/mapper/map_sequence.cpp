@@ -46,15 +46,6 @@ bool train_with_progress(BatchMapper& mapper, int iterations, const std::string&
     return done;
 }
 
-void apply_batch_bake_default(MapperConfig& config) {
-    const double street_leaf_m = MapperConfig{}.octree.leaf_size_m;
-    if (!config.is_set("bake.mask_level") && config.bake.mask_level == 0 &&
-        config.octree.num_levels > 1 && config.resolved_scene() == ScenePreset::kOutdoor &&
-        config.octree.leaf_size_m < 0.75 * street_leaf_m) {
-        config.bake.mask_level = 1;
-    }
-}
-
 MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
                                const fs::path& out_dir) {
     MapProducts products;
@@ -96,7 +87,6 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
                          const RunControl* control) {
     MapperConfig config = config_in;
     config.finalize();
-    apply_batch_bake_default(config);
     ensure_directory(out_dir);
     SequenceMap result;
     result.mapper = std::make_unique<BatchMapper>(config);
@@ -180,7 +170,7 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
     } else {
         train_with_progress(mapper, iterations, tagged("train", progress_tag));
     }
-    result.products = write_map_products(mapper.sdf(), config, out_dir);
+    result.products = write_map_products(mapper.sdf(), mapper.config(), out_dir);
     const MappingStats& stats = mapper.stats();
     StageProfile& profile = result.profile;
     profile.threads = static_cast<int>(

@@ -62,14 +62,6 @@ bool train_with_progress(BatchMapper& mapper, int iterations, const std::string&
 /// config.mesh, region by region: write_level_set_mesh). Every file is written atomically. Peak
 /// memory beyond the map is the level set's; the mesh is never held whole. Throws IoError naming
 /// the file on failure.
-/// Batch mode's bake default: outdoors at leaves finer than the street's 0.2 m, the surface is
-/// baked inside the allocated cells of level 1 (bake.mask_level 1) unless bake.mask_level is set.
-/// Where returns are sparse the finest cells do not touch and the mesh has holes: on the real walk
-/// at 0.1 m the held-out rays that hit rise from 98.3 to 99.0 % and those within 10 cm by 0.4
-/// points; incremental mode, whose map is less smooth between its cells, loses 1.2-2.8 F-score
-/// points on the streets with it, so it keeps 0 (docs/heldout.md).
-void apply_batch_bake_default(MapperConfig& config);
-
 MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
                                const std::filesystem::path& out_dir);
 
