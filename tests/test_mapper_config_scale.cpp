@@ -203,20 +203,31 @@ TEST(MapperConfigScale, AutomaticScheduleFollowsTheScenesCorners) {
     EXPECT_EQ(finalized("training:\n  iterations: 1000\n").batch_schedule(1000).iterations, 1000);
 }
 
-TEST(BatchBakeDefault, FineOutdoorLeavesBakeInsideLevelOneUnlessSet) {
-    const auto mask_level_at = [](double leaf_size_m, const char* set_key, const char* scene) {
+TEST(BatchDefaults, FineOutdoorLeavesBakeInsideLevelOneAndKeepEveryPointUnlessSet) {
+    const auto batch_config = [](double leaf_size_m, const char* set_key, const char* scene) {
         MapperConfig config;
         config.octree.leaf_size_m = leaf_size_m;
         config.scene = scene;
         if (set_key) config.mark_set(set_key);
         config.finalize();
-        apply_batch_bake_default(config);
-        return config.bake.mask_level;
+        apply_batch_defaults(config);
+        return config;
     };
-    EXPECT_EQ(mask_level_at(0.1, nullptr, "outdoor"), 1);
-    EXPECT_EQ(mask_level_at(0.2, nullptr, "outdoor"), 0);  // the street: unchanged
-    EXPECT_EQ(mask_level_at(0.1, "bake.mask_level", "outdoor"), 0);
-    EXPECT_EQ(mask_level_at(0.05, nullptr, "indoor"), 0);
+    const MapperConfig fine = batch_config(0.1, nullptr, "outdoor");
+    EXPECT_EQ(fine.bake.mask_level, 1);
+    EXPECT_EQ(fine.preprocess.voxel_points, VoxelPoints::kAll);
+    const MapperConfig street = batch_config(0.2, nullptr, "outdoor");  // unchanged
+    EXPECT_EQ(street.bake.mask_level, 0);
+    EXPECT_EQ(street.preprocess.voxel_points, VoxelPoints::kNearest);
+    EXPECT_EQ(batch_config(0.1, "bake.mask_level", "outdoor").bake.mask_level, 0);
+    EXPECT_EQ(batch_config(0.1, "bake.mask_level", "outdoor").preprocess.voxel_points,
+              VoxelPoints::kAll);
+    EXPECT_EQ(batch_config(0.1, "preprocess.voxel_points", "outdoor").preprocess.voxel_points,
+              VoxelPoints::kNearest);
+    EXPECT_EQ(batch_config(0.1, "preprocess.voxel_points", "outdoor").bake.mask_level, 1);
+    const MapperConfig indoor = batch_config(0.05, nullptr, "indoor");
+    EXPECT_EQ(indoor.bake.mask_level, 0);
+    EXPECT_EQ(indoor.preprocess.voxel_points, VoxelPoints::kNearest);
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "shine/geometry/voxel_groups.hpp"
+
 namespace shine {
 
 Eigen::Vector3d map_origin_world_m(const Eigen::Vector3d& first_sensor_world_m) {
@@ -33,21 +35,19 @@ Eigen::Vector3d choose_map_origin_world_m(const std::vector<double>& configured,
 
 std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
                               const std::vector<double>& box_world_m,
-                              const Eigen::Vector3d& origin_world_m) {
+                              const Eigen::Vector3d& origin_world_m,
+                              std::vector<std::uint32_t>* voxel_begin) {
     if (box_world_m.size() != 6) return 0;
     const Eigen::Vector3d lo =
         Eigen::Vector3d(box_world_m[0], box_world_m[1], box_world_m[2]) - origin_world_m;
     const Eigen::Vector3d hi =
         Eigen::Vector3d(box_world_m[3], box_world_m[4], box_world_m[5]) - origin_world_m;
-    const std::size_t before = points_map.size();
-    points_map.erase(std::remove_if(points_map.begin(), points_map.end(),
-                                    [&](const Eigen::Vector3f& p) {
-                                        const Eigen::Vector3d q = p.cast<double>();
-                                        return (q.array() < lo.array()).any() ||
-                                               (q.array() >= hi.array()).any();
-                                    }),
-                     points_map.end());
-    return before - points_map.size();
+    std::vector<std::uint32_t> ungrouped;
+    return filter_voxel_grouped(
+        points_map, voxel_begin != nullptr ? *voxel_begin : ungrouped, [&](std::size_t i) {
+            const Eigen::Vector3d q = points_map[i].cast<double>();
+            return (q.array() >= lo.array()).all() && (q.array() < hi.array()).all();
+        });
 }
 
 }  // namespace shine

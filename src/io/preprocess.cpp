@@ -113,9 +113,19 @@ struct Block {
 std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
                                              const PreprocessConfig& config, const fs::path& source,
                                              PreprocessStats* stats) {
+    return preprocess_scan(points_sensor, config, source, stats, nullptr);
+}
+
+std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
+                                             const PreprocessConfig& config, const fs::path& source,
+                                             PreprocessStats* stats,
+                                             std::vector<std::uint32_t>* voxel_begin) {
     using namespace preprocess_internal;
     validate(config);
+    if (voxel_begin != nullptr) voxel_begin->clear();
     const bool downsample = config.voxel_downsample_m > 0.0;
+    const bool grouped =
+        downsample && voxel_begin != nullptr && config.voxel_points == VoxelPoints::kAll;
     const double v = config.voxel_downsample_m;
     // Keys must fit in int64; 2^62 voxels leave room for the +1 neighbours of later users.
     constexpr double kMaxKey = 4.6e18;
@@ -202,6 +212,28 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
         kept.reserve(kept_count);
         for (const Block& block : blocks)
             kept.insert(kept.end(), block.kept.begin(), block.kept.end());
+    } else if (grouped && kept_count > 0) {
+        // 2'. Every point, grouped by voxel: sorted by key, then as the thinning ranks them (a
+        // total order, so the result does not depend on the input order either).
+        std::vector<const Candidate*> all;
+        all.reserve(kept_count);
+        for (const Block& block : blocks) {
+            for (const auto& part : block.candidates) {
+                for (const Candidate& c : part) all.push_back(&c);
+            }
+        }
+        std::sort(all.begin(), all.end(), [](const Candidate* a, const Candidate* b) {
+            if (!(a->key == b->key)) return a->key < b->key;
+            if (a->distance2 != b->distance2) return a->distance2 < b->distance2;
+            return lexicographic_less(a->point, b->point);
+        });
+        kept.reserve(all.size());
+        for (std::size_t i = 0; i < all.size(); ++i) {
+            if (i == 0 || !(all[i]->key == all[i - 1]->key)) {
+                voxel_begin->push_back(static_cast<std::uint32_t>(i));
+            }
+            kept.push_back(all[i]->point);
+        }
     } else if (kept_count > 0) {
         // 2. Per voxel, the point closest to its centre (exact ties: the lexicographically
         // smaller point), a total order, so neither the input order nor the split into blocks and

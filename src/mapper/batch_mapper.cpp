@@ -7,6 +7,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/geometry/map_frame.hpp"
+#include "shine/geometry/voxel_groups.hpp"
 #include "shine/io/binary_stream.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/map_budget.hpp"
@@ -21,18 +22,23 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 }
 }  // namespace
 
-void apply_batch_bake_default(MapperConfig& config) {
+void apply_batch_defaults(MapperConfig& config) {
     const double street_leaf_m = MapperConfig{}.octree.leaf_size_m;
+    const bool fine_outdoor = config.resolved_scene() == ScenePreset::kOutdoor &&
+                              config.octree.leaf_size_m < 0.75 * street_leaf_m;
+    if (!fine_outdoor) return;
     if (!config.is_set("bake.mask_level") && config.bake.mask_level == 0 &&
-        config.octree.num_levels > 1 && config.resolved_scene() == ScenePreset::kOutdoor &&
-        config.octree.leaf_size_m < 0.75 * street_leaf_m) {
+        config.octree.num_levels > 1) {
         config.bake.mask_level = 1;
+    }
+    if (!config.is_set("preprocess.voxel_points")) {
+        config.preprocess.voxel_points = VoxelPoints::kAll;
     }
 }
 
 BatchMapper::BatchMapper(const MapperConfig& config) : config_(config) {
     config_.finalize();
-    apply_batch_bake_default(config_);
+    apply_batch_defaults(config_);
     sdf_ = std::make_unique<NeuralSdf>(config_.octree, config_.decoder);
 }
 
@@ -42,9 +48,9 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
     StageSeconds stages;
     auto start = std::chrono::steady_clock::now();
     const ScanInMap in_map =
-        scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess);
+        scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess, true);
     const std::vector<Eigen::Vector3f>& points_map = in_map.points_map;
-    const std::uint32_t index = rays_.add_scan(in_map.origin_map, points_map);
+    const std::uint32_t index = rays_.add_scan(in_map.origin_map, points_map, in_map.voxel_begin);
     const bool filter = config_.dynamic.enabled;
     if (filter) {
         if (dynamic_dropped_) {
@@ -53,26 +59,39 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
         const auto vote_start = std::chrono::steady_clock::now();
         // The new scan's points are voted on by the scans before it, and it votes on theirs; the
         // scans after it vote when they arrive.
-        votes_.resize(rays_.num_rays());
+        // Votes are per voxel group, taken at each group's first point.
+        votes_.resize(rays_.num_groups());
+        if (rays_.grouped()) {
+            group_leads_.reserve(rays_.num_groups());
+            for (std::size_t g = group_leads_.size(); g < rays_.num_groups(); ++g) {
+                group_leads_.push_back(rays_.endpoint(rays_.first_ray_of_group(g)));
+            }
+        }
+        const auto leads = [this](std::uint32_t s) {
+            const std::size_t g = rays_.group_at_or_after(rays_.first_ray(s));
+            const std::size_t count = rays_.group_at_or_after(rays_.first_ray(s + 1)) - g;
+            const Eigen::Vector3f* points =
+                count == 0 ? nullptr : (rays_.grouped() ? &group_leads_[g] : &rays_.endpoint(g));
+            return std::make_tuple(points, count, g);
+        };
         Voter voter;
         voter.scan = index;
         voter.T_sensor_map =
             map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m).inverse().cast<float>();
         voter.image = RangeImage(scan.points_sensor);
         // Scans more than vote_frames apart vote as far scans (free_space_votes.hpp).
-        const std::size_t begin = rays_.first_ray(index);
+        const auto [points, count, first_group] = leads(index);
         for (const Voter& past : voters_) {
             const bool far =
                 index - past.scan > static_cast<std::uint32_t>(config_.dynamic.vote_frames);
-            if (!points_map.empty()) {
-                add_free_space_votes(past.image, past.T_sensor_map, &rays_.endpoint(begin),
-                                     points_map.size(), config_.dynamic, &votes_[begin], far);
+            if (count > 0) {
+                add_free_space_votes(past.image, past.T_sensor_map, points, count, config_.dynamic,
+                                     &votes_[first_group], far);
             }
-            const std::size_t past_begin = rays_.first_ray(past.scan);
-            const std::size_t past_count = rays_.first_ray(past.scan + 1) - past_begin;
+            const auto [past_points, past_count, past_group] = leads(past.scan);
             if (past_count == 0) continue;
-            add_free_space_votes(voter.image, voter.T_sensor_map, &rays_.endpoint(past_begin),
-                                 past_count, config_.dynamic, &votes_[past_begin], far);
+            add_free_space_votes(voter.image, voter.T_sensor_map, past_points, past_count,
+                                 config_.dynamic, &votes_[past_group], far);
         }
         voters_.push_back(std::move(voter));
         scan_sources_.push_back(scan.source);
@@ -104,19 +123,20 @@ void BatchMapper::finish_scans() {
     std::vector<Eigen::Vector3f> points;
     std::size_t dropped = 0;
     for (std::uint32_t s = 0; s < rays_.num_scans(); ++s) {
-        points.clear();
         const std::size_t begin = rays_.first_ray(s), end = rays_.first_ray(s + 1);
-        for (std::size_t r = begin; r < end; ++r) {
-            if (is_dynamic(votes_[r], config_.dynamic)) {
-                ++dropped;
-            } else {
-                points.push_back(rays_.endpoint(r));
-            }
-        }
-        kept.add_scan(rays_.origin_of_scan(s), points);
+        points.clear();
+        for (std::size_t r = begin; r < end; ++r) points.push_back(rays_.endpoint(r));
+        std::vector<std::uint32_t> voxel_begin = rays_.scan_voxel_begin(s);
+        std::size_t group = rays_.group_at_or_after(begin);
+        dropped += filter_voxel_grouped(points, voxel_begin, [&](std::size_t i) {
+            while (rays_.first_ray_of_group(group + 1) <= begin + i) ++group;
+            return !is_dynamic(votes_[group], config_.dynamic);
+        });
+        kept.add_scan(rays_.origin_of_scan(s), points, voxel_begin);
     }
     rays_ = std::move(kept);
     votes_ = {};
+    group_leads_ = {};
     voters_ = {};
     stats_.dynamic_points_dropped = dropped;
     stats_.dynamic_seconds += seconds_since(start);

@@ -107,20 +107,22 @@ std::string scalar_text(const YAML::Node& node, const std::string& key) {
     return node.Scalar();
 }
 
-Field invalid_policy(InvalidPointPolicy& field) {
-    return {
-        [&field](const YAML::Node& node, const std::string& key) {
-            const std::string v = scalar_text(node, key);
-            if (v == "error")
-                field = InvalidPointPolicy::kError;
-            else if (v == "drop")
-                field = InvalidPointPolicy::kDrop;
-            else
-                throw ConfigError("key '" + key + "': expected 'error' or 'drop', got '" + v + "'");
-        },
-        [&field](YAML::Emitter& out) {
-            out << (field == InvalidPointPolicy::kError ? "error" : "drop");
-        }};
+/// A setting with two named values.
+template <class Enum>
+Field either(Enum& field, const char* first_name, Enum first, const char* second_name,
+             Enum second) {
+    const std::string a = first_name, b = second_name;
+    return {[&field, a, b, first, second](const YAML::Node& node, const std::string& key) {
+                const std::string v = scalar_text(node, key);
+                if (v == a)
+                    field = first;
+                else if (v == b)
+                    field = second;
+                else
+                    throw ConfigError("key '" + key + "': expected '" + a + "' or '" + b +
+                                      "', got '" + v + "'");
+            },
+            [&field, a, b, first](YAML::Emitter& out) { out << (field == first ? a : b); }};
 }
 
 Field text(std::string& field) {
@@ -187,7 +189,10 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
          {{"min_range_m", number(c.preprocess.min_range_m, 0.0, kInf)},
           {"max_range_m", number(c.preprocess.max_range_m, 0.0, kInf)},
           {"voxel_downsample_m", number(c.preprocess.voxel_downsample_m, 0.0, 10.0)},
-          {"invalid_points", invalid_policy(c.preprocess.invalid_points)},
+          {"voxel_points", either(c.preprocess.voxel_points, "nearest", VoxelPoints::kNearest,
+                                  "all", VoxelPoints::kAll)},
+          {"invalid_points", either(c.preprocess.invalid_points, "error",
+                                    InvalidPointPolicy::kError, "drop", InvalidPointPolicy::kDrop)},
           {"crop_world_m", double_list(c.crop_world_m, 6)}}},
         {"map",
          {{"leaf_size_m", number(c.octree.leaf_size_m, 1e-3, 100.0)},
@@ -209,6 +214,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"use_normals", boolean(c.normals.enabled)},
           {"surface_samples_along_normal", boolean(c.sampling.surface_samples_along_normal)},
           {"min_incidence_cosine", number(c.sampling.min_incidence_cosine, 1e-3, 1.0)},
+          {"every_point_share", number(c.sampling.every_point_share, 0.0, 1.0)},
           {"normal_neighbors", number(c.normals.neighbors, 5, 64)},
           {"normal_radius_m", number(c.normals.max_radius_m, 1e-4, 100.0)}}},
         {"training",

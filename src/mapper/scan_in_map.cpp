@@ -5,21 +5,22 @@
 namespace shine {
 
 ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, NeuralSdf& sdf,
-                            bool& origin_set, PreprocessStats& stats) {
+                            bool& origin_set, PreprocessStats& stats, bool voxel_groups) {
     PreprocessStats pre;
+    ScanInMap result;
     const std::vector<Eigen::Vector3f> points_sensor =
-        preprocess_scan(scan.points_sensor, config.preprocess, scan.source, &pre);
+        preprocess_scan(scan.points_sensor, config.preprocess, scan.source, &pre,
+                        voxel_groups ? &result.voxel_begin : nullptr);
     if (!origin_set) {
         sdf.origin_world_m =
             choose_map_origin_world_m(config.origin_world_m, scan.T_world_sensor.translation());
         origin_set = true;
     }
     const Eigen::Isometry3d T_map_sensor = map_from_sensor(scan.T_world_sensor, sdf.origin_world_m);
-    ScanInMap result;
     result.origin_map = T_map_sensor.translation().cast<float>();
     result.points_map = points_in_map_frame(points_sensor, T_map_sensor);
-    const std::size_t cropped =
-        crop_to_world_box(result.points_map, config.crop_world_m, sdf.origin_world_m);
+    const std::size_t cropped = crop_to_world_box(result.points_map, config.crop_world_m,
+                                                  sdf.origin_world_m, &result.voxel_begin);
     pre.dropped_box += cropped;
     pre.output -= cropped;
     stats += pre;

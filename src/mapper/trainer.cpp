@@ -10,6 +10,7 @@
 #include "shine/core/random.hpp"
 #include "shine/io/binary_stream.hpp"
 #include "shine/model/batch_gradient.hpp"
+#include "shine/sampling/ray_draw.hpp"
 
 namespace shine {
 namespace {
@@ -140,6 +141,11 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
     // A ray is focused when a 24-bit draw falls below the share (exact for multiples of 2^-24).
     const auto focus_threshold =
         static_cast<std::uint64_t>(std::ldexp(static_cast<double>(focus.share), 24));
+    // Rays grouped by voxel are drawn from a mixture of voxels and points (ray_draw.hpp).
+    const RayDrawer whole(rays, ray_begin, ray_end, sampling_.every_point_share);
+    const RayDrawer focused_part(rays, focused ? focus.begin : ray_begin, ray_end,
+                                 sampling_.every_point_share);
+    if (whole.empty()) return stats;
     tbb::parallel_for(0, num_chunks, [&](int c) {
         Chunk& chunk = chunks_[c];
         const int ray_lo = rays_per_batch * c / num_chunks;
@@ -148,8 +154,7 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         Pcg32 rng(stream_seed(config_.seed, iteration, static_cast<std::uint64_t>(c)));
         for (int r = ray_lo; r < ray_hi; ++r) {
             const bool in_focus = focused && rng.below64(std::uint64_t{1} << 24) < focus_threshold;
-            const std::size_t from = in_focus ? focus.begin : ray_begin;
-            const std::size_t ray = from + rng.below64(ray_end - from);
+            const std::size_t ray = (in_focus ? focused_part : whole).draw(rng);
             sample_ray(rays.origin_of_ray(ray), rays.endpoint(ray), rays.normal(ray), sampling_,
                        rng, chunk.samples.data() + std::size_t(r - ray_lo) * per_ray);
         }

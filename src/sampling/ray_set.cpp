@@ -1,5 +1,7 @@
 #include "shine/sampling/ray_set.hpp"
 
+#include <algorithm>
+#include <numeric>
 #include <string>
 #include <utility>
 
@@ -8,7 +10,34 @@
 namespace shine {
 
 std::uint32_t RaySet::add_scan(const Eigen::Vector3f& origin_map,
-                               const std::vector<Eigen::Vector3f>& endpoints_map) {
+                               const std::vector<Eigen::Vector3f>& endpoints_map,
+                               const std::vector<std::uint32_t>& voxel_begin) {
+    if (!voxel_begin.empty()) {
+        bool valid = voxel_begin.front() == 0 && voxel_begin.back() < endpoints_map.size();
+        for (std::size_t i = 1; valid && i < voxel_begin.size(); ++i) {
+            valid = voxel_begin[i - 1] < voxel_begin[i];
+        }
+        if (!valid) {
+            throw DataError("RaySet::add_scan: the voxel starts do not describe runs of the " +
+                            std::to_string(endpoints_map.size()) + " endpoints");
+        }
+    }
+    const std::size_t first = endpoints_.size();
+    if (!voxel_begin.empty() || grouped()) {
+        if (!grouped()) {
+            // The first grouped scan: every earlier ray becomes a group of its own.
+            group_begin_.resize(first + 1);
+            std::iota(group_begin_.begin(), group_begin_.end(), std::size_t{0});
+        }
+        group_begin_.pop_back();
+        if (voxel_begin.empty()) {
+            for (std::size_t i = 0; i < endpoints_map.size(); ++i)
+                group_begin_.push_back(first + i);
+        } else {
+            for (const std::uint32_t b : voxel_begin) group_begin_.push_back(first + b);
+        }
+        group_begin_.push_back(first + endpoints_map.size());
+    }
     const auto scan = static_cast<std::uint32_t>(origins_.size());
     origins_.push_back(origin_map);
     endpoints_.insert(endpoints_.end(), endpoints_map.begin(), endpoints_map.end());
@@ -31,7 +60,24 @@ std::size_t RaySet::memory_bytes() const {
            scan_of_ray_.capacity() * sizeof(std::uint32_t) +
            normals_.capacity() * sizeof(Eigen::Vector3f) +
            origins_.capacity() * sizeof(Eigen::Vector3f) +
-           scan_begin_.capacity() * sizeof(std::size_t);
+           scan_begin_.capacity() * sizeof(std::size_t) +
+           group_begin_.capacity() * sizeof(std::size_t);
+}
+
+std::size_t RaySet::group_at_or_after(std::size_t ray) const {
+    if (!grouped()) return std::min(ray, endpoints_.size());
+    return static_cast<std::size_t>(
+        std::lower_bound(group_begin_.begin(), group_begin_.end() - 1, ray) - group_begin_.begin());
+}
+
+std::vector<std::uint32_t> RaySet::scan_voxel_begin(std::uint32_t scan) const {
+    std::vector<std::uint32_t> result;
+    if (!grouped()) return result;
+    const std::size_t begin = scan_begin_[scan], end = scan_begin_[scan + 1];
+    for (std::size_t g = group_at_or_after(begin); group_begin_[g] < end; ++g) {
+        result.push_back(static_cast<std::uint32_t>(group_begin_[g] - begin));
+    }
+    return result;
 }
 
 }  // namespace shine

@@ -27,11 +27,15 @@ std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const Norm
     ray_end = std::min(ray_end, n);
     if (n < 3 || ray_begin >= ray_end) return normals;
     // The tree over all endpoints, in ray order (which decides, as in the nanoflann tree this one
-    // reproduces, the order of neighbours at equal distance).
-    std::vector<IndexedPoint> endpoints(n);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 65536), [&](const auto& range) {
-        for (std::size_t ray = range.begin(); ray != range.end(); ++ray) {
-            endpoints[ray] = {rays.endpoint(ray), static_cast<std::uint32_t>(ray)};
+    // reproduces, the order of neighbours at equal distance). Rays grouped by voxel: over the
+    // groups' first rays only, the points thinning would have kept, so the normals are those of
+    // the thinned scans, shared by each group's rays.
+    const std::size_t groups = rays.num_groups();
+    std::vector<IndexedPoint> endpoints(groups);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups, 65536), [&](const auto& range) {
+        for (std::size_t g = range.begin(); g != range.end(); ++g) {
+            const std::size_t ray = rays.first_ray_of_group(g);
+            endpoints[g] = {rays.endpoint(ray), static_cast<std::uint32_t>(ray)};
         }
     });
     const PointKdTree tree(std::move(endpoints));
@@ -55,6 +59,20 @@ std::vector<Eigen::Vector3f> estimate_ray_normals(const RaySet& rays, const Norm
                     rays.origin_of_ray(ray), config);
             }
         });
+    if (rays.grouped()) {
+        const std::size_t first = rays.group_at_or_after(ray_begin);
+        const std::size_t last = rays.group_at_or_after(ray_end);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(first, last, 4096),
+                          [&](const auto& range) {
+                              for (std::size_t g = range.begin(); g != range.end(); ++g) {
+                                  const std::size_t lead = rays.first_ray_of_group(g);
+                                  const std::size_t end = rays.first_ray_of_group(g + 1);
+                                  for (std::size_t r = lead + 1; r < end; ++r) {
+                                      normals[r] = normals[lead];
+                                  }
+                              }
+                          });
+    }
     return normals;
 }
 

@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 namespace shine {
@@ -28,9 +29,11 @@ Eigen::Vector3d choose_map_origin_world_m(const std::vector<double>& configured,
                                           const Eigen::Vector3d& first_sensor_world_m);
 
 /// Removes the map-frame points outside the world box `box_world_m` ([xmin, ymin, zmin, xmax,
-/// ymax, zmax]; empty: keeps all) and returns how many were removed.
+/// ymax, zmax]; empty: keeps all) and returns how many were removed. With `voxel_begin`, the
+/// points are grouped by voxel (voxel_groups.hpp) and the groups are rewritten for what is kept.
 std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
                               const std::vector<double>& box_world_m,
-                              const Eigen::Vector3d& origin_world_m);
+                              const Eigen::Vector3d& origin_world_m,
+                              std::vector<std::uint32_t>* voxel_begin = nullptr);
 
 }  // namespace shine

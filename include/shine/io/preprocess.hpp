@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <limits>
 #include <string>
@@ -16,6 +17,12 @@ namespace shine {
 /// (`preprocess.invalid_points: error`, for data that should never hold any).
 enum class InvalidPointPolicy { kError, kDrop };
 
+/// What voxel downsampling keeps of each voxel: the point closest to its centre (`nearest`, the
+/// default), or every point, grouped by voxel (`all`), for a batch mapper that draws a voxel
+/// uniformly and then one of its points, so that the samples spread over space as after thinning
+/// while every measured point is used (RaySet's voxel groups).
+enum class VoxelPoints { kNearest, kAll };
+
 struct PreprocessConfig {
     double min_range_m = 1.5;   ///< points closer to the sensor are dropped (ego vehicle)
     double max_range_m = 60.0;  ///< points farther away are dropped
@@ -25,6 +32,7 @@ struct PreprocessConfig {
     Eigen::Vector3d box_max_sensor_m =
         Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
     double voxel_downsample_m = 0.05;  ///< keep one point per voxel of this size; 0 disables
+    VoxelPoints voxel_points = VoxelPoints::kNearest;  ///< see VoxelPoints
     InvalidPointPolicy invalid_points = InvalidPointPolicy::kDrop;
 };
 
@@ -53,5 +61,18 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
                                              const PreprocessConfig& config,
                                              const std::filesystem::path& source,
                                              PreprocessStats* stats = nullptr);
+
+/// As above, for a caller that can use voxel groups. With downsampling and VoxelPoints::kAll,
+/// every kept point is returned (nothing counts as dropped_downsample), sorted by voxel key, each
+/// voxel's points in a run that starts with the point the `nearest` mode keeps (then by distance
+/// to the centre, ties lexicographic), and `voxel_begin` receives the index where each voxel's
+/// run starts (ascending, the first 0): the runs' first points are exactly the thinned scan.
+/// Otherwise the result is the plain preprocess_scan()'s and `voxel_begin` is cleared (every
+/// point its own group).
+std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
+                                             const PreprocessConfig& config,
+                                             const std::filesystem::path& source,
+                                             PreprocessStats* stats,
+                                             std::vector<std::uint32_t>* voxel_begin);
 
 }  // namespace shine

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <vector>
 
 #include "shine/io/preprocess.hpp"
@@ -17,12 +18,16 @@ namespace shine {
 struct ScanInMap {
     Eigen::Vector3f origin_map;
     std::vector<Eigen::Vector3f> points_map;
+    /// Where each voxel's run of points starts (voxel_groups.hpp); empty: one point per voxel.
+    std::vector<std::uint32_t> voxel_begin;
 };
 
 /// Preprocesses `scan` with config.preprocess (DataError naming scan.source for invalid points,
 /// per its policy) and adds its counts to `stats` (the world crop counts as dropped_box). The
-/// first call (origin_set false) sets sdf.origin_world_m and origin_set.
+/// first call (origin_set false) sets sdf.origin_world_m and origin_set. With `voxel_groups`
+/// (a batch mapper) and preprocess.voxel_points = all, every point is kept, grouped by voxel;
+/// otherwise the scan is thinned as preprocess.voxel_downsample_m says.
 ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, NeuralSdf& sdf,
-                            bool& origin_set, PreprocessStats& stats);
+                            bool& origin_set, PreprocessStats& stats, bool voxel_groups = false);
 
 }  // namespace shine

@@ -27,6 +27,11 @@ struct SamplingConfig {
     /// free-space labels are corrected for the incidence angle).
     bool surface_samples_along_normal = true;
     float min_incidence_cosine = 0.05f;  ///< labels shrink at most 1 / this for oblique rays
+    /// Rays grouped by voxel (preprocess.voxel_points: all; ray_set.hpp): the share of a step's
+    /// rays drawn uniformly over every point, the rest drawn as a uniform voxel and then one of
+    /// its points. 0 spreads the samples over space as thinning does; 1 follows the points'
+    /// density, which is highest near the sensor. No effect on ungrouped rays.
+    float every_point_share = 0.5f;
 
     int samples_per_ray() const { return surface_samples + free_samples; }
 };

@@ -9,11 +9,20 @@
 namespace shine {
 
 /// Endpoints of all rays of the scans added so far, and the sensor origin of each scan.
+///
+/// The rays may be grouped by voxel (preprocess.voxel_points: all): each group is a run of rays
+/// of one scan whose endpoints share a voxel, led by the ray that thinning would have kept. A
+/// trainer then draws a group uniformly and one of its rays uniformly, so that samples spread
+/// over space as after thinning while every measured point is used. Without any grouped scan,
+/// every ray is a group of its own and nothing is stored for the groups.
 class RaySet {
   public:
-    /// Adds a scan; returns its index.
+    /// Adds a scan; returns its index. `voxel_begin` lists where each voxel's run of endpoints
+    /// starts (ascending, the first 0; voxel_groups.hpp); empty: every ray its own group.
+    /// Throws DataError for a list that does not describe runs of `endpoints_map`.
     std::uint32_t add_scan(const Eigen::Vector3f& origin_map,
-                           const std::vector<Eigen::Vector3f>& endpoints_map);
+                           const std::vector<Eigen::Vector3f>& endpoints_map,
+                           const std::vector<std::uint32_t>& voxel_begin = {});
     std::size_t num_rays() const { return endpoints_.size(); }
     std::size_t num_scans() const { return origins_.size(); }
     const Eigen::Vector3f& endpoint(std::size_t ray) const { return endpoints_[ray]; }
@@ -35,12 +44,30 @@ class RaySet {
     std::size_t first_ray(std::uint32_t scan) const { return scan_begin_[scan]; }
     std::size_t memory_bytes() const;
 
+    /// True once a scan with voxel groups was added.
+    bool grouped() const { return !group_begin_.empty(); }
+    /// Number of groups (num_rays() when not grouped).
+    std::size_t num_groups() const {
+        return grouped() ? group_begin_.size() - 1 : endpoints_.size();
+    }
+    /// First ray of group g; first_ray_of_group(num_groups()) = num_rays().
+    std::size_t first_ray_of_group(std::size_t group) const {
+        return grouped() ? group_begin_[group] : group;
+    }
+    /// The first group whose first ray is at or after `ray` (for a scan boundary: the scan's first
+    /// group; num_groups() for num_rays()).
+    std::size_t group_at_or_after(std::size_t ray) const;
+    /// The voxel starts of scan s's rays, relative to its first ray (empty when not grouped).
+    std::vector<std::uint32_t> scan_voxel_begin(std::uint32_t scan) const;
+
   private:
     std::vector<Eigen::Vector3f> endpoints_;
     std::vector<std::uint32_t> scan_of_ray_;
     std::vector<Eigen::Vector3f> normals_;
     std::vector<Eigen::Vector3f> origins_;
     std::vector<std::size_t> scan_begin_{0};
+    /// First ray of each group and num_rays() last; empty while no scan is grouped.
+    std::vector<std::size_t> group_begin_;
 };
 
 }  // namespace shine

@@ -1,0 +1,45 @@
+// Points grouped by voxel: a list of points in which each voxel's points form one run, described
+// by the index where each run starts (preprocess_scan() with VoxelPoints::kAll). An empty list of
+// starts means every point is a run of its own.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <utility>
+#include <vector>
+
+namespace shine {
+
+/// Keeps the points for which keep(i) is true, in order, and rewrites `voxel_begin` for what is
+/// kept: a run keeps its place, loses its removed points, and disappears when none is left. An
+/// empty `voxel_begin` stays empty. Returns the number of points removed.
+template <class Keep>
+std::size_t filter_voxel_grouped(std::vector<Eigen::Vector3f>& points,
+                                 std::vector<std::uint32_t>& voxel_begin, const Keep& keep) {
+    const bool grouped = !voxel_begin.empty();
+    std::vector<std::uint32_t> begins;
+    if (grouped) begins.reserve(voxel_begin.size());
+    constexpr std::size_t kNoRun = std::numeric_limits<std::size_t>::max();
+    std::size_t kept = 0;
+    std::size_t run = 0;               // the run of point i
+    std::size_t last_opened = kNoRun;  // the last run that has a kept point
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        if (grouped) {
+            while (run + 1 < voxel_begin.size() && voxel_begin[run + 1] <= i) ++run;
+        }
+        if (!keep(i)) continue;
+        if (grouped && run != last_opened) {
+            begins.push_back(static_cast<std::uint32_t>(kept));
+            last_opened = run;
+        }
+        points[kept++] = points[i];
+    }
+    const std::size_t removed = points.size() - kept;
+    points.resize(kept);
+    if (grouped) voxel_begin = std::move(begins);
+    return removed;
+}
+
+}  // namespace shine
