@@ -321,6 +321,25 @@ TEST(DecoderFile, BuiltinPretrainedDecoderMatchesTheDefaultShape) {
     EXPECT_THROW(load_incremental_decoder(config), ConfigError);
 }
 
+TEST(DecoderFile, FineOutdoorLeavesTakeTheDecoderPretrainedAtOneDecimetre) {
+    const std::string street_text = builtin_decoder_yaml();
+    const std::string fine_text = builtin_fine_decoder_yaml();
+    ASSERT_FALSE(fine_text.empty()) << "models/decoder_pretrained_fine.yaml was not compiled in";
+    EXPECT_NE(decoder_provenance(fine_text, "fine").find("--leaf-size-m 0.1"), std::string::npos);
+    const Decoder street = decoder_from_yaml(street_text, "street");
+    const Decoder fine = decoder_from_yaml(fine_text, "fine");
+    const auto loaded_at = [](double leaf_size_m, const char* scene) {
+        MapperConfig config;
+        config.octree.leaf_size_m = leaf_size_m;
+        config.scene = scene;
+        return load_incremental_decoder(config).params();
+    };
+    EXPECT_EQ(loaded_at(0.1, "outdoor"), fine.params());
+    EXPECT_EQ(loaded_at(0.2, "outdoor"), street.params());
+    EXPECT_EQ(loaded_at(0.05, "indoor"), street.params());  // not measured indoors
+    EXPECT_NE(fine.params(), street.params());
+}
+
 namespace {
 /// A 12-beam sweep of flat ground (z = 0) seen from (x, 0, 1.5): endpoints within 11 m of x.
 Scan ground_scan_at(double x) {

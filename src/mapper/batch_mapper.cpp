@@ -23,10 +23,7 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 }  // namespace
 
 void apply_batch_defaults(MapperConfig& config) {
-    const double street_leaf_m = MapperConfig{}.octree.leaf_size_m;
-    const bool fine_outdoor = config.resolved_scene() == ScenePreset::kOutdoor &&
-                              config.octree.leaf_size_m < 0.75 * street_leaf_m;
-    if (!fine_outdoor) return;
+    if (!config.fine_outdoor_leaf()) return;
     if (!config.is_set("bake.mask_level") && config.bake.mask_level == 0 &&
         config.octree.num_levels > 1) {
         config.bake.mask_level = 1;

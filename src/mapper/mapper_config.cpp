@@ -307,6 +307,11 @@ MapperConfig::MapperConfig() {
     octree.feature_precision = FeaturePrecision::kFloat16;
 }
 
+bool MapperConfig::fine_outdoor_leaf() const {
+    return resolved_scene() == ScenePreset::kOutdoor &&
+           octree.leaf_size_m < 0.75 * MapperConfig{}.octree.leaf_size_m;
+}
+
 ScenePreset MapperConfig::resolved_scene() const {
     if (scene == "auto") return scene_for_leaf(octree.leaf_size_m);
     if (scene == "outdoor" || scene == "indoor" || scene == "object") {

@@ -24,8 +24,9 @@ struct IncrementalConfig {
     /// this over the scan's steps).
     float learning_rate = 0.02f;
     ImportanceConfig importance;  ///< lambda_r (0 = no regulariser) and Omega_m
-    /// The frozen decoder: "builtin" (models/decoder_pretrained.yaml, compiled in), a path to a
-    /// file written by `shine pretrain`, a map.vdb (the decoder a batch run trained with its
+    /// The frozen decoder: "builtin" (models/decoder_pretrained.yaml, compiled in; outdoors at
+    /// leaves finer than 0.2 m models/decoder_pretrained_fine.yaml, pretrained at 0.1 m), a path to
+    /// a file written by `shine pretrain`, a map.vdb (the decoder a batch run trained with its
     /// features, e.g. on an earlier recording of the same sensor), or "none" (start from the
     /// random decoder and train it online, as training.train_decoder says).
     std::string decoder_weights = "builtin";

@@ -110,6 +110,10 @@ struct MapperConfig {
     /// The scene `scene` names, or for "auto" the one the leaf size suggests. Throws ConfigError
     /// naming map.scene for an unknown name.
     ScenePreset resolved_scene() const;
+    /// Outdoors at a leaf finer than the street's 0.2 m (below 0.15 m): where batch mode keeps
+    /// every point and bakes in the level-1 cells (apply_batch_defaults()) and incremental mode's
+    /// built-in decoder is the one pretrained at 0.1 m (load_incremental_decoder()).
+    bool fine_outdoor_leaf() const;
 
     /// Batch mode's samples per step, learning rate and steps. With `iterations` and
     /// trainer.batch_size both automatic (the defaults), the automatic schedule: 32768 samples

@@ -38,5 +38,7 @@ Decoder load_decoder(const std::filesystem::path& path);
 /// The text of models/decoder_pretrained.yaml as it was when the library was built; empty if the
 /// file did not exist then.
 const char* builtin_decoder_yaml();
+/// The same for models/decoder_pretrained_fine.yaml, the decoder pretrained at 0.1 m leaves.
+const char* builtin_fine_decoder_yaml();
 
 }  // namespace shine
