@@ -95,7 +95,7 @@ class Trainer {
     std::size_t release_inactive_state(std::uint32_t keep_scans);
 
     /// One iteration on rays drawn uniformly from [ray_begin, ray_end) of `rays` (rays grouped by
-    /// voxel: a group uniformly, then one of its rays; the range's ends and focus.begin are then
+    /// voxel: as RayDrawer draws them, ray_draw.hpp; the range's ends and focus.begin are then
     /// scan boundaries). With a
     /// `regularizer` (incremental mode) the loss adds its lambda_r * L_r over the feature rows the
     /// batch touched (paper Eq. (5)); without one the step is exactly the batch-mode step. With a
