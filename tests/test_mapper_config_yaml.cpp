@@ -40,6 +40,27 @@ TEST(ConfigYaml, MaxMapMbIsReadAndChecked) {
     EXPECT_EQ(back.max_map_mb, 12.5);
 }
 
+TEST(ConfigYaml, VoxelPointsAndEveryPointShareAreReadCheckedAndStored) {
+    MapperConfig config;
+    parse_config_yaml("preprocess:\n  voxel_points: all\nsampling:\n  every_point_share: 0.25\n",
+                      "test.yaml", config);
+    EXPECT_EQ(config.preprocess.voxel_points, VoxelPoints::kAll);
+    EXPECT_EQ(config.sampling.every_point_share, 0.25f);
+    EXPECT_TRUE(config.is_set("preprocess.voxel_points"));
+    MapperConfig back;
+    parse_config_yaml(config_to_yaml(config), "stored", back);
+    EXPECT_EQ(back.preprocess.voxel_points, VoxelPoints::kAll);
+    EXPECT_EQ(back.sampling.every_point_share, 0.25f);
+    expect_config_error("preprocess:\n  voxel_points: every\n",
+                        "'preprocess.voxel_points': expected 'nearest' or 'all', got 'every'");
+    expect_config_error("preprocess:\n  voxel_points: [all]\n", "preprocess.voxel_points");
+    expect_config_error("sampling:\n  every_point_share: 1.5\n", "sampling.every_point_share");
+    expect_config_error("sampling:\n  every_point_share: -0.1\n", "sampling.every_point_share");
+    // The neighbouring key keeps its message.
+    expect_config_error("preprocess:\n  invalid_points: skip\n",
+                        "'preprocess.invalid_points': expected 'error' or 'drop', got 'skip'");
+}
+
 }  // namespace
 }  // namespace shine
 
