@@ -39,7 +39,7 @@ import json
 import sys
 
 out, every = sys.argv[1], sys.argv[2]
-print(f"| map (held out: every {every}th scan) | rays within 10 cm | median error | mean error "
+print(f"| map (held out: 1 scan in {every}) | rays within 10 cm | median error | mean error "
       "| rays that hit | map memory | seconds |")
 print("| --- | --- | --- | --- | --- | --- | --- |")
 for name in ["tsdf_0.1", "tsdf_0.2", "batch_0.2", "batch_0.1", "incremental_0.2",
