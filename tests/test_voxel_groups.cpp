@@ -84,7 +84,12 @@ TEST(VoxelGroups, FilterKeepsRunsAndDropsEmptiedOnes) {
     std::vector<std::uint32_t> begin = {0, 3, 5, 6};
     // Drop the first run's leader, the whole second run and the last point.
     const std::vector<bool> keep = {false, true, true, false, false, true, true, false};
-    EXPECT_EQ(filter_voxel_grouped(points, begin, [&](std::size_t i) { return bool(keep[i]); }),
+    std::vector<std::size_t> runs;  // the run each point is reported in
+    EXPECT_EQ(filter_voxel_grouped(points, begin,
+                                   [&](std::size_t i, std::size_t run) {
+                                       runs.push_back(run);
+                                       return bool(keep[i]);
+                                   }),
               4u);
     ASSERT_EQ(points.size(), 4u);
     EXPECT_EQ(points[0].x(), 1.0f);
@@ -92,9 +97,15 @@ TEST(VoxelGroups, FilterKeepsRunsAndDropsEmptiedOnes) {
     EXPECT_EQ(points[2].x(), 5.0f);
     EXPECT_EQ(points[3].x(), 6.0f);
     EXPECT_EQ(begin, (std::vector<std::uint32_t>{0, 2, 3}));
+    EXPECT_EQ(runs, (std::vector<std::size_t>{0, 0, 0, 1, 1, 2, 3, 3}));
     // Ungrouped points stay ungrouped.
     std::vector<std::uint32_t> ungrouped;
-    EXPECT_EQ(filter_voxel_grouped(points, ungrouped, [](std::size_t i) { return i != 1; }), 1u);
+    EXPECT_EQ(filter_voxel_grouped(points, ungrouped,
+                                   [](std::size_t i, std::size_t run) {
+                                       EXPECT_EQ(run, i);  // ungrouped: each point its own run
+                                       return i != 1;
+                                   }),
+              1u);
     EXPECT_EQ(points.size(), 3u);
     EXPECT_TRUE(ungrouped.empty());
 }

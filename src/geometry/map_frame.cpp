@@ -43,11 +43,12 @@ std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
     const Eigen::Vector3d hi =
         Eigen::Vector3d(box_world_m[3], box_world_m[4], box_world_m[5]) - origin_world_m;
     std::vector<std::uint32_t> ungrouped;
-    return filter_voxel_grouped(
-        points_map, voxel_begin != nullptr ? *voxel_begin : ungrouped, [&](std::size_t i) {
-            const Eigen::Vector3d q = points_map[i].cast<double>();
-            return (q.array() >= lo.array()).all() && (q.array() < hi.array()).all();
-        });
+    return filter_voxel_grouped(points_map, voxel_begin != nullptr ? *voxel_begin : ungrouped,
+                                [&](std::size_t i, std::size_t) {
+                                    const Eigen::Vector3d q = points_map[i].cast<double>();
+                                    return (q.array() >= lo.array()).all() &&
+                                           (q.array() < hi.array()).all();
+                                });
 }
 
 }  // namespace shine

@@ -124,10 +124,9 @@ void BatchMapper::finish_scans() {
         points.clear();
         for (std::size_t r = begin; r < end; ++r) points.push_back(rays_.endpoint(r));
         std::vector<std::uint32_t> voxel_begin = rays_.scan_voxel_begin(s);
-        std::size_t group = rays_.group_at_or_after(begin);
-        dropped += filter_voxel_grouped(points, voxel_begin, [&](std::size_t i) {
-            while (rays_.first_ray_of_group(group + 1) <= begin + i) ++group;
-            return !is_dynamic(votes_[group], config_.dynamic);
+        const std::size_t first_group = rays_.group_at_or_after(begin);
+        dropped += filter_voxel_grouped(points, voxel_begin, [&](std::size_t, std::size_t run) {
+            return !is_dynamic(votes_[first_group + run], config_.dynamic);
         });
         kept.add_scan(rays_.origin_of_scan(s), points, voxel_begin);
     }

@@ -12,9 +12,10 @@
 
 namespace shine {
 
-/// Keeps the points for which keep(i) is true, in order, and rewrites `voxel_begin` for what is
-/// kept: a run keeps its place, loses its removed points, and disappears when none is left. An
-/// empty `voxel_begin` stays empty. Returns the number of points removed.
+/// Keeps the points for which keep(i, run) is true, in order (`run` is point i's run: its index
+/// in `voxel_begin`, or i when ungrouped), and rewrites `voxel_begin` for what is kept: a run
+/// keeps its place, loses its removed points, and disappears when none is left. An empty
+/// `voxel_begin` stays empty. Returns the number of points removed.
 template <class Keep>
 std::size_t filter_voxel_grouped(std::vector<Eigen::Vector3f>& points,
                                  std::vector<std::uint32_t>& voxel_begin, const Keep& keep) {
@@ -28,8 +29,10 @@ std::size_t filter_voxel_grouped(std::vector<Eigen::Vector3f>& points,
     for (std::size_t i = 0; i < points.size(); ++i) {
         if (grouped) {
             while (run + 1 < voxel_begin.size() && voxel_begin[run + 1] <= i) ++run;
+        } else {
+            run = i;
         }
-        if (!keep(i)) continue;
+        if (!keep(i, run)) continue;
         if (grouped && run != last_opened) {
             begins.push_back(static_cast<std::uint32_t>(kept));
             last_opened = run;
