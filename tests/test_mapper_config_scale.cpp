@@ -178,12 +178,12 @@ TEST(MapperConfigScale, BadSceneNamesTheKey) {
 }
 
 TEST(MapperConfigScale, AutomaticScheduleAtThreeMillimetresIsCapped) {
-    // 250 * (0.2 / 0.003)^1.5 = 136,000 steps, capped at 6250 steps of 32768 samples.
+    // 250 * (0.2 / 0.003)^2 = 1.1 M steps, capped at 6250 steps of 32768 samples.
     const MapperConfig c = finalized("map:\n  leaf_size_m: 0.003\n");
     const BatchSchedule schedule = c.batch_schedule();
     EXPECT_EQ(schedule.iterations, 6250);
     EXPECT_EQ(schedule.batch_size, 32768);
-    EXPECT_EQ(finalized("map:\n  leaf_size_m: 0.1\n").batch_schedule().iterations, 707);
+    EXPECT_EQ(finalized("map:\n  leaf_size_m: 0.1\n").batch_schedule().iterations, 1000);
 }
 
 TEST(MapperConfigScale, AutomaticScheduleFollowsTheScenesCorners) {
@@ -193,12 +193,15 @@ TEST(MapperConfigScale, AutomaticScheduleFollowsTheScenesCorners) {
     // Twice the street's corners: 500 steps; far more than the leaf formula's cap: 6250.
     EXPECT_EQ(object.batch_schedule(2 * 438267).iterations, 500);
     EXPECT_EQ(object.batch_schedule(100000000).iterations, 6250);
-    // Outdoors at 0.2 and 0.1 m the leaf formula is the smaller for a street-sized map: unchanged.
+    // Outdoors at 0.2 m the leaf formula is the smaller for a street-sized map: unchanged.
     const MapperConfig street = finalized("");
     EXPECT_EQ(street.batch_schedule(438267).iterations, 250);
     EXPECT_EQ(street.batch_schedule(10 * 438267).iterations, 250);
+    // At 0.1 m the street's 1.66 M corners cap the leaf formula's 1000 steps at 947; the real
+    // walk's 1.79 M corners (cap 1022) leave 1000.
     const MapperConfig fine = finalized("map:\n  leaf_size_m: 0.1\n");
-    EXPECT_EQ(fine.batch_schedule(1660000).iterations, 707);
+    EXPECT_EQ(fine.batch_schedule(1660000).iterations, 947);
+    EXPECT_EQ(fine.batch_schedule(1791171).iterations, 1000);
     // Set steps are never moved.
     EXPECT_EQ(finalized("training:\n  iterations: 1000\n").batch_schedule(1000).iterations, 1000);
 }

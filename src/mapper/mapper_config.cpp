@@ -417,7 +417,7 @@ BatchSchedule MapperConfig::batch_schedule(std::size_t num_corners) const {
     if (iterations >= 0) {
         schedule.iterations = iterations;
     } else if (automatic) {
-        const double finer = std::pow(0.2 / leaf_m, 1.5), coarser = std::min(leaf_m / 0.2, 2.0);
+        const double finer = std::pow(0.2 / leaf_m, 2.0), coarser = std::min(leaf_m / 0.2, 2.0);
         double steps = std::min(250.0 * std::max(finer, coarser), 6250.0);
         if (num_corners > 0) {
             const double units = static_cast<double>(num_corners) / kScheduleCornersPerUnit;

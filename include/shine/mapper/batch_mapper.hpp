@@ -55,10 +55,11 @@ struct MappingStats {
 ///   0.1 m the held-out rays that hit rise from 98.3 to 99.0 % and those within 10 cm by 0.4
 ///   points; incremental mode, whose map is less smooth between its cells, loses 1.2-2.8 F-score
 ///   points on the streets with it, so it keeps 0;
-/// - every point is kept, grouped by voxel (preprocess.voxel_points all), and half of the rays
+/// - every point is kept, grouped by voxel (preprocess.voxel_points all), and 70 % of the rays
 ///   are drawn over the points (sampling.every_point_share): on the real walk at 0.1 m the
-///   held-out rays within 10 cm rise from 88.41 to 88.89 % and the median error falls from 2.50
-///   to 2.34 cm, for 0.25-0.4 F-score points on the streets. At 0.2 m leaves, whose voxels hold
+///   held-out rays within 10 cm rise from 88.41 to 88.96 % and the median error falls from 2.50
+///   to 2.29 cm; with the 0.1 m schedule's 1000 steps the streets score 0.1-0.3 points below
+///   thinning's (docs/heldout.md). At 0.2 m leaves, whose voxels hold
 ///   four to eight times the points, the streets lose 0.7-1.0 points, so they keep `nearest`.
 void apply_batch_defaults(MapperConfig& config);
 

@@ -118,12 +118,14 @@ struct MapperConfig {
     /// Batch mode's samples per step, learning rate and steps. With `iterations` and
     /// trainer.batch_size both automatic (the defaults), the automatic schedule: 32768 samples
     /// per step at learning rate 0.03 (unless set), 250 steps at 0.2 m leaves, 250 *
-    /// (0.2 m / leaf)^1.5 for finer leaves (a surface map has ~4x the features per halving of
-    /// the leaf; 707 at 0.1 m) and 250 * leaf / 0.2 m for coarser ones up to 500 at 0.4 m and
-    /// beyond (a coarse map's few rows are touched in nearly every step, and what counts there is
-    /// the number of Adam steps), at most 6250. On the street and two other seeds it scores as
-    /// well as or better than the paper's 4096-sample steps with 17-19 % fewer samples at 0.2 m
-    /// and 0.1 m (docs/performance.md). Setting either keeps the paper's steps: 4096 samples
+    /// (0.2 m / leaf)^2 for finer leaves (a surface map has ~4x the features per halving of the
+    /// leaf, and each row needs as many samples; 1000 at 0.1 m, where the corner cap below gives
+    /// the street 947) and 250 * leaf / 0.2 m for coarser ones up to 500 at 0.4 m and beyond (a
+    /// coarse map's few rows are touched in nearly every step, and what counts there is the
+    /// number of Adam steps), at most 6250. On the street and two other seeds it scores as well
+    /// as or better than the paper's 4096-sample steps with 17-19 % fewer samples at 0.2 m
+    /// (docs/performance.md); at 0.1 m the steps of (0.2 m / leaf)^2 instead of the earlier
+    /// ^1.5 (707) add 0.0-0.2 points on the streets (docs/heldout.md). Setting either keeps the paper's steps: 4096 samples
     /// (unless set), learning rate 0.01 (unless set) and, for automatic iterations, 2400 steps at
     /// 0.2 m and coarser, 2400 * (0.2 m / leaf)^1.5 for finer leaves, at most 50,000.
     ///
@@ -131,8 +133,8 @@ struct MapperConfig {
     /// also follows the scene: it takes at most 250 steps per kScheduleCornersPerUnit corners (the
     /// bundled street's at 0.2 m), never fewer than 250. A fine leaf on a small scene (an object
     /// at 3 mm: 186,624 corners) then trains 250 steps instead of the leaf formula's 6250, as long
-    /// as a street of its size; on the streets and real outdoor scans at 0.1-0.2 m the leaf
-    /// formula is the smaller and nothing changes (docs/object_scale.md).
+    /// as a street of its size; at 0.2 m the leaf formula is the smaller, and at 0.1 m the two
+    /// are close (streets 1.59-1.66 M corners: 907-947 steps; the real walk's 1.79 M: 1000).
     BatchSchedule batch_schedule(std::size_t num_corners = 0) const;
     /// Corners of the bundled street's 0.2 m map: one unit of the scene-following cap.
     static constexpr double kScheduleCornersPerUnit = 438267.0;

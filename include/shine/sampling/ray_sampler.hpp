@@ -31,7 +31,7 @@ struct SamplingConfig {
     /// rays drawn uniformly over every point, the rest drawn as a uniform voxel and then one of
     /// its points. 0 spreads the samples over space as thinning does; 1 follows the points'
     /// density, which is highest near the sensor. No effect on ungrouped rays.
-    float every_point_share = 0.5f;
+    float every_point_share = 0.7f;
 
     int samples_per_ray() const { return surface_samples + free_samples; }
 };
