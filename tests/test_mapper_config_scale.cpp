@@ -6,6 +6,7 @@
 #include <string>
 
 #include "shine/core/error.hpp"
+#include "shine/mapper/incremental_mapper.hpp"
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
 
@@ -231,6 +232,26 @@ TEST(BatchDefaults, FineOutdoorLeavesBakeInsideLevelOneAndKeepEveryPointUnlessSe
     const MapperConfig indoor = batch_config(0.05, nullptr, "indoor");
     EXPECT_EQ(indoor.bake.mask_level, 0);
     EXPECT_EQ(indoor.preprocess.voxel_points, VoxelPoints::kNearest);
+}
+
+TEST(IncrementalDefaults, FineOutdoorLeavesTakeFifteenStepsPerScanUnlessSet) {
+    const auto steps = [](double leaf_size_m, const char* scene, int set_steps) {
+        MapperConfig config;
+        config.octree.leaf_size_m = leaf_size_m;
+        config.scene = scene;
+        if (set_steps > 0) {
+            config.incremental.iterations_per_frame = set_steps;
+            config.mark_set("incremental.iterations_per_frame");
+        }
+        config.finalize();
+        apply_incremental_defaults(config);
+        return config.incremental.iterations_per_frame;
+    };
+    EXPECT_EQ(steps(0.1, "outdoor", 0), 15);
+    EXPECT_EQ(steps(0.2, "outdoor", 0), 11);
+    EXPECT_EQ(steps(0.05, "indoor", 0), 11);
+    EXPECT_EQ(steps(0.1, "outdoor", 11), 11);  // a set count, even the default's, is kept
+    EXPECT_EQ(steps(0.1, "outdoor", 20), 20);
 }
 
 }  // namespace

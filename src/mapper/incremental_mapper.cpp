@@ -81,8 +81,17 @@ Decoder load_incremental_decoder(const MapperConfig& config_in) {
     return decoder;
 }
 
+void apply_incremental_defaults(MapperConfig& config) {
+    if (!config.fine_outdoor_leaf()) return;
+    if (!config.is_set("incremental.iterations_per_frame") &&
+        config.incremental.iterations_per_frame == IncrementalConfig{}.iterations_per_frame) {
+        config.incremental.iterations_per_frame = 15;
+    }
+}
+
 IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(config) {
     config_.finalize();
+    apply_incremental_defaults(config_);
     const IncrementalConfig& inc = config_.incremental;
     if (inc.iterations_per_frame < 1) {
         throw ConfigError("incremental.iterations_per_frame must be at least 1");
