@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <utility>
 
 #include "shine/core/error.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
@@ -252,6 +253,29 @@ TEST(IncrementalDefaults, FineOutdoorLeavesTakeFifteenStepsPerScanUnlessSet) {
     EXPECT_EQ(steps(0.05, "indoor", 0), 11);
     EXPECT_EQ(steps(0.1, "outdoor", 11), 11);  // a set count, even the default's, is kept
     EXPECT_EQ(steps(0.1, "outdoor", 20), 20);
+}
+
+TEST(IncrementalDefaults, FineOutdoorLeavesTakeTheStreetMapsNormalNeighbourhoodUnlessSet) {
+    const auto normals = [](double leaf_size_m, const char* scene, const char* set_key) {
+        MapperConfig config;
+        config.octree.leaf_size_m = leaf_size_m;
+        config.scene = scene;
+        if (set_key) {
+            config.mark_set(set_key);
+            config.normals.max_radius_m = 0.3f;  // only kept where its key is set
+            config.incremental.normal_neighbors = 12;
+        }
+        config.finalize();
+        apply_incremental_defaults(config);
+        return std::make_pair(config.normals.max_radius_m, config.incremental.normal_neighbors);
+    };
+    EXPECT_EQ(normals(0.1, "outdoor", nullptr), std::make_pair(1.0f, 24));
+    EXPECT_EQ(normals(0.2, "outdoor", nullptr), std::make_pair(1.0f, 16));
+    EXPECT_EQ(normals(0.05, "indoor", nullptr).second, 16);
+    EXPECT_LT(normals(0.05, "indoor", nullptr).first, 1.0f);  // follows the leaf as before
+    // A set key's value is kept.
+    EXPECT_FLOAT_EQ(normals(0.1, "outdoor", "sampling.normal_radius_m").first, 0.3f);
+    EXPECT_EQ(normals(0.1, "outdoor", "incremental.normal_neighbors").second, 12);
 }
 
 }  // namespace

@@ -83,9 +83,21 @@ Decoder load_incremental_decoder(const MapperConfig& config_in) {
 
 void apply_incremental_defaults(MapperConfig& config) {
     if (!config.fine_outdoor_leaf()) return;
+    const IncrementalConfig defaults;
     if (!config.is_set("incremental.iterations_per_frame") &&
-        config.incremental.iterations_per_frame == IncrementalConfig{}.iterations_per_frame) {
+        config.incremental.iterations_per_frame == defaults.iterations_per_frame) {
         config.incremental.iterations_per_frame = 15;
+    }
+    // Normals over the 0.2 m map's neighbourhood: its radius (the leaf-following default halves
+    // it at 0.1 m) and about as many of the denser points.
+    const double street_radius_m = MapperConfig().normals.max_radius_m;
+    if (!config.is_set("sampling.normal_radius_m") &&
+        config.normals.max_radius_m < street_radius_m) {
+        config.normals.max_radius_m = static_cast<float>(street_radius_m);
+    }
+    if (!config.is_set("incremental.normal_neighbors") &&
+        config.incremental.normal_neighbors == defaults.normal_neighbors) {
+        config.incremental.normal_neighbors = 24;
     }
 }
 

@@ -76,12 +76,16 @@ struct IncrementalFrameStats {
 /// unreadable file.
 Decoder load_incremental_decoder(const MapperConfig& config);
 
-/// Incremental mode's default for outdoor leaves finer than the street's 0.2 m
-/// (MapperConfig::fine_outdoor_leaf()), unless incremental.iterations_per_frame is set: 15 steps
-/// per scan instead of 11, for a map with about four times the feature rows. With the decoder
-/// pretrained at 0.1 m the 0.1 m map then scores above the 0.2 m one on the real walk (84.93
-/// against 84.86 % of the held-out rays within 10 cm) and on the streets (94.59 / 94.23 / 94.58
-/// against 94.08 / 93.25 / 94.07 %), for 1.2x the time per scan (docs/incremental.md).
+/// Incremental mode's defaults for outdoor leaves finer than the street's 0.2 m
+/// (MapperConfig::fine_outdoor_leaf()), each unless its key is set:
+/// - 15 steps per scan instead of 11 (incremental.iterations_per_frame), for a map with about
+///   four times the feature rows;
+/// - normals over the 0.2 m map's neighbourhood: sampling.normal_radius_m 1 m (not halved with
+///   the leaf) and 24 neighbours (incremental.normal_neighbors) among the denser points.
+/// With the decoder pretrained at 0.1 m the 0.1 m map then scores above the 0.2 m one on the
+/// real walk (85.82 / 84.82 % of the held-out rays within 10 cm with every 3rd / 2nd scan held
+/// out, against 84.86 / 84.18 %) and on the streets (94.97 / 94.57 / 94.88 against 94.08 / 93.25
+/// / 94.07 %) (docs/incremental.md).
 void apply_incremental_defaults(MapperConfig& config);
 
 class IncrementalMapper {
