@@ -200,7 +200,7 @@ TEST(MapperConfig, AutomaticScheduleTakesLargeStepsAndGrowsForFinerLeaves) {
     EXPECT_EQ(trainer.batch_size, 32768);
     EXPECT_FLOAT_EQ(trainer.feature_adam.learning_rate, 0.03f);
     const std::pair<double, int> steps_by_leaf[] = {{0.1, 1000}, {0.3, 375}, {0.4, 500},
-                                                    {0.5, 500}, {1.0, 500}, {0.001, 6250}};
+                                                    {0.5, 500},  {1.0, 500}, {0.001, 6250}};
     for (const auto& [leaf_m, steps] : steps_by_leaf) {
         config.octree.leaf_size_m = leaf_m;
         EXPECT_EQ(config.batch_iterations(), steps) << leaf_m << " m";

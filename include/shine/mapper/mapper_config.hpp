@@ -125,9 +125,10 @@ struct MapperConfig {
     /// number of Adam steps), at most 6250. On the street and two other seeds it scores as well
     /// as or better than the paper's 4096-sample steps with 17-19 % fewer samples at 0.2 m
     /// (docs/performance.md); at 0.1 m the steps of (0.2 m / leaf)^2 instead of the earlier
-    /// ^1.5 (707) add 0.0-0.2 points on the streets (docs/heldout.md). Setting either keeps the paper's steps: 4096 samples
-    /// (unless set), learning rate 0.01 (unless set) and, for automatic iterations, 2400 steps at
-    /// 0.2 m and coarser, 2400 * (0.2 m / leaf)^1.5 for finer leaves, at most 50,000.
+    /// ^1.5 (707) add 0.0-0.2 points on the streets (docs/heldout.md). Setting either keeps the
+    /// paper's steps: 4096 samples (unless set), learning rate 0.01 (unless set) and, for automatic
+    /// iterations, 2400 steps at 0.2 m and coarser, 2400 * (0.2 m / leaf)^1.5 for finer leaves, at
+    /// most 50,000.
     ///
     /// With the map's corner count (`num_corners`, all levels; 0 = unknown) the automatic schedule
     /// also follows the scene: it takes at most 250 steps per kScheduleCornersPerUnit corners (the
