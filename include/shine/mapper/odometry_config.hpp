@@ -47,7 +47,7 @@ struct OdometryConfig {
     /// costs nothing more. 1: off. A scan ICP registers well leaves 0.8-0.96 of its points on a
     /// plane (the street, the real walk, the 4 km city); in the city's junctions ten scans of
     /// 2501 stopped in a wrong minimum at 0.50-0.66, each turning the estimate 6-11 degrees
-    /// (3.30 % drift with 0.5 here); with 0.7 the headings rescued them (0.03 %).
+    /// (3.3-6.3 % drift with 0.5 here); with 0.7 the headings rescued them (0.03 %).
     int icp_yaw_hypotheses = 12;
     double icp_min_inlier_ratio = 0.7;
     /// Geman-McClure scale of the SDF residuals (the map's SDF at the points), m. Small: points
