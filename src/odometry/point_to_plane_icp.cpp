@@ -108,7 +108,8 @@ long ReferencePlanes::plane_residual(const Eigen::Vector3d& point_world, double 
 RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& points_sensor,
                                            const Eigen::Isometry3d& T_world_sensor_initial,
                                            const ReferencePlanes& reference,
-                                           const PointToPlaneIcpConfig& config) {
+                                           const PointToPlaneIcpConfig& config,
+                                           const SweepModel* sweep) {
     if (!(config.max_correspondence_distance_m > 0.0)) {
         throw ConfigError("ICP max_correspondence_distance_m must be positive (got " +
                           std::to_string(config.max_correspondence_distance_m) + ")");
@@ -131,8 +132,8 @@ RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& p
                               }
                           });
     };
-    return minimise_point_residuals(points_sensor, T_world_sensor_initial, residuals,
-                                    config.solver);
+    return minimise_point_residuals(points_sensor, T_world_sensor_initial, residuals, config.solver,
+                                    sweep);
 }
 
 double point_to_plane_inlier_ratio(const std::vector<Eigen::Vector3f>& points_sensor,

@@ -27,7 +27,7 @@ std::uint64_t voxel_key(const Eigen::Vector3f& p, double voxel_size_m) {
 }  // namespace
 }  // namespace registration_points_internal
 
-std::vector<Eigen::Vector3f> select_registration_points(
+std::vector<std::size_t> select_registration_point_indices(
     const std::vector<Eigen::Vector3f>& points_sensor, const RegistrationPointConfig& config) {
     if (!(config.voxel_size_m >= 0.0)) {
         throw ConfigError("registration voxel_size_m must be >= 0 (got " +
@@ -40,9 +40,10 @@ std::vector<Eigen::Vector3f> select_registration_points(
     }
     const double min_sq = config.min_range_m * config.min_range_m;
     const double max_sq = config.max_range_m * config.max_range_m;
-    std::vector<Eigen::Vector3f> out;
+    std::vector<std::size_t> out;
     std::unordered_set<std::uint64_t> occupied;
-    for (const Eigen::Vector3f& p : points_sensor) {
+    for (std::size_t i = 0; i < points_sensor.size(); ++i) {
+        const Eigen::Vector3f& p = points_sensor[i];
         if (!p.allFinite()) continue;
         const double r2 = p.cast<double>().squaredNorm();
         if (r2 < min_sq || r2 > max_sq) continue;
@@ -51,8 +52,18 @@ std::vector<Eigen::Vector3f> select_registration_points(
                  .second) {
             continue;
         }
-        out.push_back(p);
+        out.push_back(i);
     }
+    return out;
+}
+
+std::vector<Eigen::Vector3f> select_registration_points(
+    const std::vector<Eigen::Vector3f>& points_sensor, const RegistrationPointConfig& config) {
+    const std::vector<std::size_t> indices =
+        select_registration_point_indices(points_sensor, config);
+    std::vector<Eigen::Vector3f> out;
+    out.reserve(indices.size());
+    for (const std::size_t i : indices) out.push_back(points_sensor[i]);
     return out;
 }
 

@@ -48,10 +48,6 @@ void check_config(const RegistrationSolverConfig& config) {
     }
 }
 
-double rms_range_m(const NormalEquations& eq) {
-    return eq.num_valid > 0 ? std::sqrt(eq.sum_range_sq_m2 / double(eq.num_valid)) : 0.0;
-}
-
 }  // namespace
 }  // namespace registration_solver_internal
 
@@ -136,18 +132,27 @@ Eigen::Matrix<double, 1, 6> point_residual_jacobian(const Eigen::Vector3d& point
     return J;
 }
 
-NormalEquations build_normal_equations(const std::vector<Eigen::Vector3f>& points_sensor,
-                                       const Eigen::Isometry3d& T_world_sensor,
-                                       const PointResiduals& residuals,
-                                       const RobustKernel& kernel) {
-    using registration_solver_internal::kChunkPoints;
+namespace registration_solver_internal {
+namespace {
+
+/// The sums of Eq. (2) (N = 6) or of Eq. (3) (N = 12: `sweep` and `sweep_twist` given) at pose T,
+/// over fixed chunks of points; Eq. (4)'s prior is not included.
+template <int N>
+NormalEquationsOf<N> build_equations(const std::vector<Eigen::Vector3f>& points_sensor,
+                                     const Eigen::Isometry3d& T_world_sensor,
+                                     const PointResiduals& residuals, const RobustKernel& kernel,
+                                     const SweepModel* sweep, const Vector6d& sweep_twist) {
     const std::size_t n = points_sensor.size();
-    NormalEquations total;
+    NormalEquationsOf<N> total;
     if (n == 0) return total;
+    // The points where the solver sees them: deskewed along the sweep's twist when N = 12.
+    std::vector<Eigen::Vector3d> points_ref(n);
+    tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+        const Eigen::Vector3d p = points_sensor[i].cast<double>();
+        points_ref[i] = N == 12 ? se3_exp(double(sweep->fractions[i]) * sweep_twist) * p : p;
+    });
     std::vector<Eigen::Vector3d> points_world(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        points_world[i] = T_world_sensor * points_sensor[i].cast<double>();
-    }
+    for (std::size_t i = 0; i < n; ++i) points_world[i] = T_world_sensor * points_ref[i];
     std::vector<double> r;
     std::vector<Eigen::Vector3d> g;
     std::vector<std::uint8_t> valid;
@@ -158,23 +163,27 @@ NormalEquations build_normal_equations(const std::vector<Eigen::Vector3f>& point
     }
     const Eigen::Matrix3d R = T_world_sensor.linear();
     const std::size_t num_chunks = (n + kChunkPoints - 1) / kChunkPoints;
-    std::vector<NormalEquations> partial(num_chunks);
+    std::vector<NormalEquationsOf<N>> partial(num_chunks);
     tbb::parallel_for(std::size_t(0), num_chunks, [&](std::size_t c) {
-        NormalEquations& eq = partial[c];
+        NormalEquationsOf<N>& eq = partial[c];
         const std::size_t end = std::min(n, (c + 1) * kChunkPoints);
         for (std::size_t i = c * kChunkPoints; i < end; ++i) {
             if (!valid[i] || !std::isfinite(r[i]) || !g[i].allFinite()) continue;
-            const Eigen::Vector3d p = points_sensor[i].cast<double>();
-            const Eigen::Matrix<double, 1, 6> J = point_residual_jacobian(p, R, g[i]);
+            const Eigen::Vector3d& q = points_ref[i];
+            Eigen::Matrix<double, 1, N> J;
+            J.template head<6>() = point_residual_jacobian(q, R, g[i]);
+            if constexpr (N == 12) {
+                J.template tail<6>() = double(sweep->fractions[i]) * J.template head<6>();
+            }
             const double w = kernel.weight(r[i]);
             eq.H.noalias() += w * J.transpose() * J;
             eq.b.noalias() += (w * r[i]) * J.transpose();
             eq.cost += kernel.cost(r[i]);
-            eq.sum_range_sq_m2 += p.squaredNorm();
+            eq.sum_range_sq_m2 += q.squaredNorm();
             ++eq.num_valid;
         }
     });
-    for (const NormalEquations& eq : partial) {
+    for (const NormalEquationsOf<N>& eq : partial) {
         total.H += eq.H;
         total.b += eq.b;
         total.cost += eq.cost;
@@ -182,6 +191,34 @@ NormalEquations build_normal_equations(const std::vector<Eigen::Vector3f>& point
         total.num_valid += eq.num_valid;
     }
     return total;
+}
+
+/// Eq. (4)'s weights, (s_kernel / sigma_j)^2.
+Vector6d sweep_prior_weights(const SweepModel& sweep, const RobustKernel& kernel) {
+    Vector6d w;
+    w.head<3>().setConstant(std::pow(kernel.scale_m / sweep.prior_sigma_translation_m, 2));
+    w.tail<3>().setConstant(std::pow(kernel.scale_m / sweep.prior_sigma_rotation_rad, 2));
+    return w;
+}
+
+/// Adds Eq. (4) at `sweep_twist` to the 12-unknown sums.
+void add_sweep_prior(NormalEquationsOf<12>& eq, const SweepModel& sweep, const Vector6d& weights,
+                     const Vector6d& sweep_twist) {
+    const Vector6d d = sweep_twist - sweep.twist_prior;
+    eq.H.bottomRightCorner<6, 6>().diagonal() += weights;
+    eq.b.tail<6>() += weights.cwiseProduct(d);
+    eq.cost += 0.5 * d.dot(weights.cwiseProduct(d));
+}
+
+}  // namespace
+}  // namespace registration_solver_internal
+
+NormalEquations build_normal_equations(const std::vector<Eigen::Vector3f>& points_sensor,
+                                       const Eigen::Isometry3d& T_world_sensor,
+                                       const PointResiduals& residuals,
+                                       const RobustKernel& kernel) {
+    return registration_solver_internal::build_equations<6>(
+        points_sensor, T_world_sensor, residuals, kernel, nullptr, Vector6d::Zero());
 }
 
 double scaled_condition_number(const Matrix6d& H, double range_m) {
@@ -197,25 +234,46 @@ double scaled_condition_number(const Matrix6d& H, double range_m) {
     return lambda_max / lambda_min;
 }
 
-RegistrationResult minimise_point_residuals(const std::vector<Eigen::Vector3f>& points_sensor,
-                                            const Eigen::Isometry3d& T_world_sensor_initial,
-                                            const PointResiduals& residuals,
-                                            const RegistrationSolverConfig& config) {
-    using namespace registration_solver_internal;
-    check_config(config);
+namespace registration_solver_internal {
+namespace {
+
+/// The Levenberg-Marquardt loop for N unknowns (file comment of the header).
+template <int N>
+RegistrationResult solve(const std::vector<Eigen::Vector3f>& points_sensor,
+                         const Eigen::Isometry3d& T_world_sensor_initial,
+                         const PointResiduals& residuals, const RegistrationSolverConfig& config,
+                         const SweepModel* sweep) {
+    using VectorN = Eigen::Matrix<double, N, 1>;
+    using MatrixN = Eigen::Matrix<double, N, N>;
     RegistrationResult result;
     result.T_world_sensor = T_world_sensor_initial;
     result.T_world_sensor_solved = T_world_sensor_initial;
     result.num_points = points_sensor.size();
+    Vector6d prior_weights = Vector6d::Zero();
+    Vector6d twist = Vector6d::Zero();
+    if constexpr (N == 12) {
+        prior_weights = sweep_prior_weights(*sweep, config.kernel);
+        twist = sweep->twist_prior;
+    }
+    result.sweep_twist = twist;
+    const auto build = [&](const Eigen::Isometry3d& T, const Vector6d& xi) {
+        NormalEquationsOf<N> eq =
+            build_equations<N>(points_sensor, T, residuals, config.kernel, sweep, xi);
+        if constexpr (N == 12) add_sweep_prior(eq, *sweep, prior_weights, xi);
+        return eq;
+    };
 
     Eigen::Isometry3d T = T_world_sensor_initial;
-    NormalEquations eq = build_normal_equations(points_sensor, T, residuals, config.kernel);
+    NormalEquationsOf<N> eq = build(T, twist);
     result.initial_cost = eq.cost;
     const auto finish = [&](RegistrationStatus status) {
         result.T_world_sensor_solved = T;
         result.final_cost = eq.cost;
         result.num_valid_points = eq.num_valid;
-        result.condition_number = scaled_condition_number(eq.H, rms_range_m(eq));
+        const double range_m =
+            eq.num_valid > 0 ? std::sqrt(eq.sum_range_sq_m2 / double(eq.num_valid)) : 0.0;
+        result.condition_number =
+            scaled_condition_number(eq.H.template topLeftCorner<6, 6>(), range_m);
         if (status == RegistrationStatus::kConverged &&
             !(result.condition_number <= config.max_condition_number)) {
             status = RegistrationStatus::kIllConditioned;
@@ -225,34 +283,41 @@ RegistrationResult minimise_point_residuals(const std::vector<Eigen::Vector3f>& 
                            status == RegistrationStatus::kIllConditioned;
         result.degenerate = status == RegistrationStatus::kTooFewPoints ||
                             status == RegistrationStatus::kIllConditioned;
-        if (result.accepted()) result.T_world_sensor = T;
+        if (result.accepted()) {
+            result.T_world_sensor = T;
+            result.sweep_twist = twist;
+        }
         return result;
     };
 
     double lambda = config.initial_damping;
     result.iterations = 1;
     while (true) {
-        if (eq.num_valid < std::size_t(std::max(config.min_valid_points, 6))) {
+        if (eq.num_valid < std::size_t(std::max(config.min_valid_points, N))) {
             return finish(RegistrationStatus::kTooFewPoints);
         }
         // Eq. (2): a damped step, retried with more damping until the cost goes down.
-        Matrix6d A = eq.H;
+        MatrixN A = eq.H;
         // Marquardt's scaling by diag(H), floored so that a direction H does not constrain at
         // all (a plane's in-plane translation) gets damped too instead of an unbounded step.
         A.diagonal() +=
             lambda * eq.H.diagonal().cwiseMax(kDampingFloor * eq.H.diagonal().maxCoeff());
-        const Vector6d delta = A.ldlt().solve(-eq.b);
-        const bool small = delta.allFinite() &&
-                           delta.head<3>().norm() < config.converged_translation_m &&
-                           delta.tail<3>().norm() < config.converged_rotation_rad;
-        const Eigen::Isometry3d T_trial = T * se3_exp(delta);
-        NormalEquations trial;
-        if (delta.allFinite()) {
-            trial = build_normal_equations(points_sensor, T_trial, residuals, config.kernel);
+        const VectorN step = A.ldlt().solve(-eq.b);
+        bool small = step.allFinite();
+        for (int block = 0; block < N / 6; ++block) {
+            small = small &&
+                    step.template segment<3>(6 * block).norm() < config.converged_translation_m &&
+                    step.template segment<3>(6 * block + 3).norm() < config.converged_rotation_rad;
         }
-        const bool descent = delta.allFinite() && trial.num_valid > 0 && trial.cost <= eq.cost;
+        const Eigen::Isometry3d T_trial = T * se3_exp(step.template head<6>());
+        Vector6d twist_trial = twist;
+        if constexpr (N == 12) twist_trial += step.template tail<6>();
+        NormalEquationsOf<N> trial;
+        if (step.allFinite()) trial = build(T_trial, twist_trial);
+        const bool descent = step.allFinite() && trial.num_valid > 0 && trial.cost <= eq.cost;
         if (descent) {
             T = T_trial;
+            twist = twist_trial;
             eq = std::move(trial);
             lambda = std::max(lambda * 0.1, 1e-12);
         } else {
@@ -268,6 +333,27 @@ RegistrationResult minimise_point_residuals(const std::vector<Eigen::Vector3f>& 
             ++result.iterations;
         }
     }
+}
+
+}  // namespace
+}  // namespace registration_solver_internal
+
+RegistrationResult minimise_point_residuals(const std::vector<Eigen::Vector3f>& points_sensor,
+                                            const Eigen::Isometry3d& T_world_sensor_initial,
+                                            const PointResiduals& residuals,
+                                            const RegistrationSolverConfig& config,
+                                            const SweepModel* sweep) {
+    using namespace registration_solver_internal;
+    check_config(config);
+    if (!sweep) return solve<6>(points_sensor, T_world_sensor_initial, residuals, config, nullptr);
+    if (sweep->fractions.size() != points_sensor.size()) {
+        throw DataError("registration: the sweep has " + std::to_string(sweep->fractions.size()) +
+                        " point times for " + std::to_string(points_sensor.size()) + " points");
+    }
+    if (!(sweep->prior_sigma_translation_m > 0.0) || !(sweep->prior_sigma_rotation_rad > 0.0)) {
+        throw ConfigError("registration: the sweep prior's sigmas must be positive");
+    }
+    return solve<12>(points_sensor, T_world_sensor_initial, residuals, config, sweep);
 }
 
 }  // namespace shine

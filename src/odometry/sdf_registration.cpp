@@ -25,13 +25,14 @@ void PointwiseSdfField::evaluate(const std::vector<Eigen::Vector3d>& points_worl
 
 RegistrationResult register_to_sdf(const std::vector<Eigen::Vector3f>& points_sensor,
                                    const Eigen::Isometry3d& T_world_sensor_initial,
-                                   const SdfField& field, const SdfRegistrationConfig& config) {
+                                   const SdfField& field, const SdfRegistrationConfig& config,
+                                   const SweepModel* sweep) {
     const PointResiduals residuals =
         [&field](const std::vector<Eigen::Vector3d>& points_world, std::vector<double>& r,
                  std::vector<Eigen::Vector3d>& g,
                  std::vector<std::uint8_t>& valid) { field.evaluate(points_world, r, g, valid); };
-    return minimise_point_residuals(points_sensor, T_world_sensor_initial, residuals,
-                                    config.solver);
+    return minimise_point_residuals(points_sensor, T_world_sensor_initial, residuals, config.solver,
+                                    sweep);
 }
 
 }  // namespace shine

@@ -70,13 +70,15 @@ struct PointToPlaneIcpConfig {
 };
 
 /// The pose T_world_sensor that puts `points_sensor` on the planes of `reference`, by
-/// Levenberg-Marquardt from `T_world_sensor_initial`. On failure (result.accepted() false) the
-/// result's pose is the initial one. Throws ConfigError for a non-positive correspondence
-/// distance or an invalid solver configuration.
+/// Levenberg-Marquardt from `T_world_sensor_initial`. With `sweep` the points are as measured
+/// during the sweep, whose motion is estimated too (minimise_point_residuals). On failure
+/// (result.accepted() false) the result's pose is the initial one. Throws ConfigError for a
+/// non-positive correspondence distance or an invalid solver configuration.
 RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& points_sensor,
                                            const Eigen::Isometry3d& T_world_sensor_initial,
                                            const ReferencePlanes& reference,
-                                           const PointToPlaneIcpConfig& config);
+                                           const PointToPlaneIcpConfig& config,
+                                           const SweepModel* sweep = nullptr);
 
 /// ICP's fitness: the share of `points_sensor` that, at `T_world_sensor`, have a matchable
 /// reference point within `max_correspondence_m` and lie within `inlier_m` of its tangent plane

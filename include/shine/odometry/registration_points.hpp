@@ -8,6 +8,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
 #include <vector>
 
 namespace shine {
@@ -24,6 +25,10 @@ struct RegistrationPointConfig {
 /// order is the input order. Deterministic. Throws ConfigError for a negative voxel size or an
 /// empty range window.
 std::vector<Eigen::Vector3f> select_registration_points(
+    const std::vector<Eigen::Vector3f>& points_sensor, const RegistrationPointConfig& config);
+
+/// The same selection as indices into `points_sensor`, ascending (to take per-point times along).
+std::vector<std::size_t> select_registration_point_indices(
     const std::vector<Eigen::Vector3f>& points_sensor, const RegistrationPointConfig& config);
 
 }  // namespace shine

@@ -16,6 +16,20 @@
 // The sums run over fixed chunks of points in parallel (tbb::parallel_for) and are then added in
 // chunk order, so the result is the same bits for any number of threads.
 //
+// Continuous time (SweepModel): a spinning LiDAR measures its points over a sweep while it
+// moves. Point i, measured at sweep fraction s_i (its time over the motion's interval), is then at
+// T exp(s_i xi) p_i, where xi is the twist of the motion over the interval (sensor frame at the
+// reference time; se3.hpp). The solver then estimates xi with T, as CT-ICP (Dellenbach et al.,
+// ICRA 2022) estimates a scan's begin and end poses. With q_i = exp(s_i xi) p_i and the update
+// xi <- xi + epsilon, exp(s_i (xi + epsilon)) p_i ~ q_i + s_i (epsilon_rho + epsilon_phi x q_i)
+// to first order in s_i xi (a sweep's motion is small), so the Jacobian row of point i is
+//   [ J_i(q_i) ,  s_i J_i(q_i) ]                                                        (3)
+// with J_i(q_i) Eq. (1) at the deskewed point. A Gaussian prior keeps xi near the expected motion
+// xi_0 (the constant-velocity prediction's), adding to E
+//   1/2 sum_j (s_kernel / sigma_j)^2 (xi_j - xi_0,j)^2                                  (4)
+// as if the residuals had the kernel's scale for a standard deviation: over thousands of points it
+// matters only where the data leave the motion unconstrained.
+//
 // Success needs three things, reported separately in RegistrationResult: enough points with a
 // residual, a well-conditioned H at the solution (its condition number after scaling the rotation
 // by the points' RMS range, so that both blocks are in metres: a single plane or a featureless
@@ -68,6 +82,16 @@ struct RegistrationSolverConfig {
     RobustKernel kernel;
 };
 
+/// The sweep of Eq. (3)-(4): when each point was measured and the motion expected over the sweep.
+struct SweepModel {
+    /// s_i: point i's time divided by the interval of `twist_prior` (0 at the pose's instant).
+    std::vector<float> fractions;
+    /// xi_0: the expected motion over one interval, (rho [m], phi [rad]) in the sensor frame.
+    Vector6d twist_prior = Vector6d::Zero();
+    double prior_sigma_translation_m = 0.05;  ///< sigma_j of Eq. (4) for rho
+    double prior_sigma_rotation_rad = 0.01;   ///< sigma_j of Eq. (4) for phi
+};
+
 /// Why a registration stopped.
 enum class RegistrationStatus : std::uint8_t {
     kConverged,       ///< a step below the thresholds, H well conditioned
@@ -95,6 +119,8 @@ struct RegistrationResult {
     double condition_number = 0.0;
     std::size_t num_points = 0;        ///< points given
     std::size_t num_valid_points = 0;  ///< points with a residual at the last iterate
+    /// With a SweepModel: the sweep's twist at the last iterate (the prior's when not accepted).
+    Vector6d sweep_twist = Vector6d::Zero();
 
     /// Converged and not degenerate: T_world_sensor is the solve, not the fallback.
     bool accepted() const { return converged && !degenerate; }
@@ -110,21 +136,29 @@ using PointResiduals = std::function<void(
     std::vector<Eigen::Vector3d>& gradients_world, std::vector<std::uint8_t>& valid)>;
 
 /// Minimises sum_i rho(r_i(T p_i)) over T starting at `T_world_sensor_initial`; see the header's
-/// comment for the method and the failure rules. An empty scan is a kTooFewPoints result, not an
-/// error. Throws ConfigError for a non-positive kernel scale, thresholds or iteration count.
+/// comment for the method and the failure rules. With `sweep`, the points are as measured during
+/// the sweep and its twist is estimated too (Eq. (3)-(4)), starting at the prior; the condition
+/// number is then the pose block's. An empty scan is a kTooFewPoints result, not an error. Throws
+/// ConfigError for a non-positive kernel scale, thresholds, iteration count or prior sigma, and
+/// DataError when the sweep's fractions do not match the points.
 RegistrationResult minimise_point_residuals(const std::vector<Eigen::Vector3f>& points_sensor,
                                             const Eigen::Isometry3d& T_world_sensor_initial,
                                             const PointResiduals& residuals,
-                                            const RegistrationSolverConfig& config);
+                                            const RegistrationSolverConfig& config,
+                                            const SweepModel* sweep = nullptr);
 
-/// The normal equations of Eq. (2) without damping at one pose (for tests and diagnostics).
-struct NormalEquations {
-    Matrix6d H = Matrix6d::Zero();  ///< sum w J^T J
-    Vector6d b = Vector6d::Zero();  ///< sum w J^T r
-    double cost = 0.0;              ///< sum rho(r)
-    double sum_range_sq_m2 = 0.0;   ///< sum |p|^2 over valid points (sensor frame)
+/// The normal equations without damping at one pose: of Eq. (2) for N = 6 unknowns, of Eq. (3)
+/// for N = 12 (the pose and the sweep's twist).
+template <int N>
+struct NormalEquationsOf {
+    Eigen::Matrix<double, N, N> H = Eigen::Matrix<double, N, N>::Zero();  ///< sum w J^T J
+    Eigen::Matrix<double, N, 1> b = Eigen::Matrix<double, N, 1>::Zero();  ///< sum w J^T r
+    double cost = 0.0;                                                    ///< sum rho(r)
+    double sum_range_sq_m2 = 0.0;  ///< sum |p|^2 over valid points (sensor frame, deskewed)
     std::size_t num_valid = 0;
 };
+/// Eq. (2)'s (for tests and diagnostics).
+using NormalEquations = NormalEquationsOf<6>;
 
 /// Eq. (1)-(2) at one pose: the weighted sums over the valid points, in fixed chunks.
 NormalEquations build_normal_equations(const std::vector<Eigen::Vector3f>& points_sensor,

@@ -64,9 +64,12 @@ struct SdfRegistrationConfig {
 /// Levenberg-Marquardt from `T_world_sensor_initial` (normally a constant-velocity prediction).
 /// Points are used as given: thin and range-limit them first (select_registration_points). On
 /// failure (result.accepted() false) the result's pose is the initial one; see
-/// RegistrationResult for what is reported. Throws ConfigError for an invalid configuration.
+/// RegistrationResult for what is reported. With `sweep` the points are as measured during the
+/// sweep, whose motion is estimated too (minimise_point_residuals). Throws ConfigError for an
+/// invalid configuration.
 RegistrationResult register_to_sdf(const std::vector<Eigen::Vector3f>& points_sensor,
                                    const Eigen::Isometry3d& T_world_sensor_initial,
-                                   const SdfField& field, const SdfRegistrationConfig& config);
+                                   const SdfField& field, const SdfRegistrationConfig& config,
+                                   const SweepModel* sweep = nullptr);
 
 }  // namespace shine
