@@ -213,6 +213,8 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
              {"correction_deg", r.correction_rad * 180.0 / M_PI},
              {"icp_inlier_ratio", r.icp_inlier_ratio},
              {"yaw_hypotheses", r.yaw_hypotheses},
+             {"sweep_estimated", r.sweep_estimated},
+             {"sweep_twist", std::vector<double>(r.sweep_twist, r.sweep_twist + 6)},
              {"seconds", r.seconds}});
     }
     const OdometryConfig& c = odometry.config();
@@ -221,6 +223,7 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
                         {"icp_warmup_scans", c.icp_warmup_scans},
                         {"sdf_kernel_scale_m", c.sdf_kernel_scale_m},
                         {"icp_kernel_scale_m", c.icp_kernel_scale_m},
+                        {"estimate_sweep", c.estimate_sweep},
                         {"counts", counts},
                         {"median_seconds_per_scan", median(scan_seconds)},
                         {"median_registration_seconds", median(registration_seconds)},

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "cli_test_support.hpp"
@@ -119,9 +120,44 @@ TEST(DeskewCli, EstimatedPosesDeskewOnTheirOwnWhenScansCarryTimes) {
         run(map_args(distorted_street(), out, "--mode incremental --poses estimate --no-eval"));
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find("between the estimated poses"), std::string::npos) << r.output;
-    const nlohmann::json deskew = read_json(out / "stats.json").at("deskew");
+    const nlohmann::json stats = read_json(out / "stats.json");
+    const nlohmann::json& deskew = stats.at("deskew");
     EXPECT_EQ(deskew.at("mode"), "auto");
-    // Scan 0 has no motion before it: mapped as measured.
-    EXPECT_EQ(deskew.at("scans_deskewed").get<int>(), kScans - 1);
-    EXPECT_EQ(deskew.at("scans_as_measured").get<int>(), 1);
+    // Scan 0 has no motion before it: its sweep comes from scan 1 (bootstrap_sweep), and every
+    // scan is mapped deskewed with the sweep's estimated motion.
+    EXPECT_EQ(deskew.at("scans_deskewed").get<int>(), kScans);
+    EXPECT_EQ(deskew.at("scans_as_measured").get<int>(), 0);
+    const nlohmann::json& scans = stats.at("odometry").at("scans");
+    ASSERT_EQ(scans.size(), static_cast<std::size_t>(kScans));
+    for (const nlohmann::json& scan : scans) {
+        EXPECT_TRUE(scan.at("sweep_estimated").get<bool>()) << scan.dump();
+        // 10 m/s forward over a 0.1 s sweep.
+        EXPECT_NEAR(scan.at("sweep_twist").at(0).get<double>(), 1.0, 0.05) << scan.dump();
+    }
+
+    // Stopped after 3 scans and resumed: the replayed scans are deskewed with their recorded
+    // sweeps (the first one's from the bootstrap), so the run ends as the uninterrupted one.
+    const fs::path resumed = test_dir() / "estimated_resumed";
+    fs::remove_all(resumed);
+    const CliResult stopped =
+        run(map_args(distorted_street(), resumed,
+                     "--mode incremental --poses estimate --no-eval --interrupt-after 3"));
+    ASSERT_EQ(stopped.exit_code, 130) << stopped.output;
+    const CliResult again = run("map --resume '" + resumed.string() + "' -q --threads 2");
+    ASSERT_EQ(again.exit_code, 0) << again.output;
+    EXPECT_EQ(read_text(resumed / "poses.txt"), read_text(out / "poses.txt"));
+    EXPECT_EQ(read_text(resumed / "mesh.ply"), read_text(out / "mesh.ply"));
+
+    // Without the sweep's estimate scan 0 is mapped as measured, as before.
+    const fs::path off = test_dir() / "estimated_no_sweep";
+    fs::remove_all(off);
+    const fs::path config = test_dir() / "no_sweep.yaml";
+    std::ofstream(config) << "odometry: {estimate_sweep: false}\n";
+    const CliResult r_off =
+        run(map_args(distorted_street(), off,
+                     "--mode incremental --poses estimate --no-eval -c '" + config.string() + "'"));
+    ASSERT_EQ(r_off.exit_code, 0) << r_off.output;
+    const nlohmann::json deskew_off = read_json(off / "stats.json").at("deskew");
+    EXPECT_EQ(deskew_off.at("scans_deskewed").get<int>(), kScans - 1);
+    EXPECT_EQ(deskew_off.at("scans_as_measured").get<int>(), 1);
 }

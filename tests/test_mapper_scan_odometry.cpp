@@ -14,6 +14,7 @@
 #include "shine/io/binary_stream.hpp"
 #include "shine/mapper/mapper_config.hpp"
 #include "shine/mapper/scan_odometry.hpp"
+#include "shine/odometry/scan_deskew.hpp"
 #include "shine/odometry/se3.hpp"
 
 using namespace shine;
@@ -67,6 +68,22 @@ Scan room_scan(const Eigen::Isometry3d& T_world_sensor) {
     return scan;
 }
 
+/// The room measured during a 0.1 s sweep from T_world_sensor while the sensor moves by
+/// `sweep_twist` over the sweep: each point at the fraction of the sweep its azimuth gives, in
+/// the sensor frame at its time, which the scan carries (seconds after the pose).
+Scan swept_room_scan(const Eigen::Isometry3d& T_world_sensor, const Vector6d& sweep_twist) {
+    Scan scan;
+    const Eigen::Isometry3d T_sensor_world = T_world_sensor.inverse();
+    for (const Eigen::Vector3d& x : room_world()) {
+        const Eigen::Vector3d p = T_sensor_world * x;
+        const double s = (std::atan2(p.y(), p.x()) + M_PI) / (2.0 * M_PI);
+        scan.points_sensor.push_back((se3_exp(s * sweep_twist).inverse() * p).cast<float>());
+        scan.point_time_s.push_back(0.1 * s);
+    }
+    scan.source = "swept room";
+    return scan;
+}
+
 NeuralSdf empty_map() { return NeuralSdf(FeatureOctreeConfig{}, DecoderConfig{}); }
 
 }  // namespace
@@ -98,6 +115,62 @@ TEST(ScanOdometry, FirstScanIsTheWorldAndWarmUpScansRegisterByIcp) {
     EXPECT_LT(rotation_angle_rad(error), kRotationTolRad);
     // The prediction was the identity (one pose behind): the registration moved it by the motion.
     EXPECT_NEAR(record.correction_m, truth.translation().norm(), 0.05);
+}
+
+TEST(ScanOdometry, FirstSweepIsBootstrappedFromTheSecondScanAndTheSecondRegistersSwept) {
+    // A sensor moving at constant velocity: 8 m/s and 11 deg/s of yaw, the pose at each sweep's
+    // start, so each sweep's motion is the motion between consecutive poses. Measured: the first
+    // sweep 0.9 mm and 0.009 deg off, the second pose 1.2 mm and 0.006 deg off.
+    Vector6d xi;
+    xi << 0.8, 0.05, 0.0, 0.002, -0.001, 0.02;
+    const Eigen::Isometry3d T_second = se3_exp(xi);
+    const Scan first = swept_room_scan(Eigen::Isometry3d::Identity(), xi);
+    const Scan second = swept_room_scan(T_second, xi);
+    const NeuralSdf map = empty_map();  // not used while ICP registers
+
+    ScanOdometry odometry(OdometryConfig{});
+    EXPECT_EQ(odometry.estimate(first, map).source, PoseSource::kFirst);
+    EXPECT_FALSE(odometry.records()[0].sweep_estimated);
+    ASSERT_TRUE(odometry.bootstrap_sweep(first, second, 0.1));
+    ASSERT_TRUE(odometry.records()[0].sweep_estimated);
+    const Eigen::Isometry3d sweep_error = se3_exp(xi).inverse() * odometry.sweep_motion(0);
+    std::printf("first sweep: %.3g m %.3g deg off\n", sweep_error.translation().norm(),
+                rotation_angle_rad(sweep_error) * 180 / M_PI);
+    EXPECT_LT(sweep_error.translation().norm(), kTranslationTolM);
+    EXPECT_LT(rotation_angle_rad(sweep_error), kRotationTolRad);
+
+    // Mapped deskewed (as the mapper does), the first scan is ICP's reference; the second
+    // registers as measured with the first sweep's motion as its prior.
+    Scan reference = first;
+    reference.points_sensor =
+        deskew_scan(first.points_sensor, first.point_time_s, odometry.sweep_motion(0), 0.1);
+    odometry.remember_scan(reference);
+    SweepPrior prior;
+    prior.T_expected = odometry.sweep_motion(0);
+    prior.interval_s = 0.1;
+    const OdometryRecord& record = odometry.estimate(second, map, &prior);
+    EXPECT_EQ(record.source, PoseSource::kIcp);
+    EXPECT_TRUE(record.sweep_estimated);
+    const Eigen::Isometry3d error = T_second.inverse() * odometry.poses().back();
+    std::printf("second pose: %.3g m %.3g deg off\n", error.translation().norm(),
+                rotation_angle_rad(error) * 180 / M_PI);
+    EXPECT_LT(error.translation().norm(), kTranslationTolM);
+    EXPECT_LT(rotation_angle_rad(error), kRotationTolRad);
+}
+
+TEST(ScanOdometry, FirstSweepIsNotBootstrappedWithoutPointTimes) {
+    ScanOdometry odometry(OdometryConfig{});
+    const NeuralSdf map = empty_map();
+    const Scan first = room_scan(Eigen::Isometry3d::Identity());
+    odometry.estimate(first, map);
+    odometry.remember_scan(first);
+    Vector6d xi;
+    xi << 0.8, 0.0, 0.0, 0.0, 0.0, 0.02;
+    EXPECT_FALSE(odometry.bootstrap_sweep(first, room_scan(se3_exp(xi)), 0.1));
+    EXPECT_FALSE(odometry.records()[0].sweep_estimated);
+    // The second scan's prediction stays the first pose (at rest).
+    const OdometryRecord& record = odometry.estimate(room_scan(se3_exp(xi)), map);
+    EXPECT_NEAR(record.correction_m, 0.8, 0.05);
 }
 
 TEST(ScanOdometry, MapRegistrationThatFailsKeepsIcpsPoseNotThePrediction) {

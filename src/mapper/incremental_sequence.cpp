@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <type_traits>
 
 #include "shine/core/atomic_file.hpp"
@@ -13,6 +14,7 @@
 #include "shine/io/ply.hpp"
 #include "shine/io/tum.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
+#include "shine/odometry/se3.hpp"
 
 namespace shine {
 namespace fs = std::filesystem;
@@ -29,7 +31,8 @@ std::string frame_name(std::size_t frame) {
 }
 
 /// Deskews scan `i` of `sequence` for mapping (sequence_deskew.hpp): with the sequence's poses,
-/// or with the odometry's motion from pose i-1 to the estimated pose i (scan 0 as measured).
+/// or with the motion the odometry estimated during its sweep, or where it estimated none, the
+/// motion from pose i-1 to the estimated pose i (scan 0 as measured).
 void deskew_for_mapping(Scan& scan, const ScanSequence& sequence, std::size_t i,
                         const DeskewConfig& config, const ScanOdometry* odometry,
                         DeskewStats& stats) {
@@ -38,13 +41,19 @@ void deskew_for_mapping(Scan& scan, const ScanSequence& sequence, std::size_t i,
         return;
     }
     if (config.mode == DeskewMode::kOn) require_point_times(scan);
-    if (scan.point_time_s.empty() || i == 0) {
+    const bool estimated = odometry->records().at(i).sweep_estimated;
+    if (scan.point_time_s.empty() || (i == 0 && !estimated)) {
         ++stats.scans_as_measured;
         return;
     }
     const std::vector<Eigen::Isometry3d>& poses = odometry->poses();
-    deskew_in_place(scan, poses.at(i - 1).inverse() * poses.at(i),
-                    scan_interval_s(sequence, i - 1, i, config.scan_period_s), stats);
+    const Eigen::Isometry3d motion =
+        estimated ? odometry->sweep_motion(i) : poses.at(i - 1).inverse() * poses.at(i);
+    // A sweep's motion is over the interval to the scan before it; the first scan's (from the
+    // bootstrap) over the interval to the next one.
+    const double interval_s = i == 0 ? scan_interval_s(sequence, 0, 1, config.scan_period_s)
+                                     : scan_interval_s(sequence, i - 1, i, config.scan_period_s);
+    deskew_in_place(scan, motion, interval_s, stats);
 }
 
 // Incremental checkpoints: the frames done, the mapper's state, the stage profile so far and the
@@ -171,21 +180,35 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
             if (deskew && config.deskew.mode == DeskewMode::kOn) require_point_times(scan);
             const OdometryRecord* pose = nullptr;
             if (result.odometry) {
-                // Registered deskewed at the last estimated motion (the prediction's velocity);
-                // the first two scans have none yet and register as measured.
-                Scan deskewed;
-                const Scan* registered = &scan;
+                // Registered with the last estimated motion (the prediction's velocity) as its
+                // sweep's prior: the second scan with the first sweep's (bootstrap_sweep below),
+                // the first one as measured.
+                std::optional<SweepPrior> sweep;
+                if (deskew && !scan.point_time_s.empty() && i == 1 &&
+                    result.odometry->records()[0].sweep_estimated) {
+                    sweep.emplace();
+                    sweep->interval_s =
+                        scan_interval_s(sequence, 0, 1, config.deskew.scan_period_s);
+                    sweep->T_expected = result.odometry->sweep_motion(0);
+                }
                 if (deskew && !scan.point_time_s.empty() && i >= 2) {
                     const std::vector<Eigen::Isometry3d>& poses = result.odometry->poses();
-                    deskewed = scan;
-                    DeskewStats not_mapped;
-                    deskew_in_place(
-                        deskewed, poses[i - 2].inverse() * poses[i - 1],
-                        scan_interval_s(sequence, i - 2, i - 1, config.deskew.scan_period_s),
-                        not_mapped);
-                    registered = &deskewed;
+                    const double previous_s =
+                        scan_interval_s(sequence, i - 2, i - 1, config.deskew.scan_period_s);
+                    sweep.emplace();
+                    sweep->interval_s =
+                        scan_interval_s(sequence, i - 1, i, config.deskew.scan_period_s);
+                    sweep->T_expected = interpolate_constant_velocity(
+                        poses[i - 2].inverse() * poses[i - 1], sweep->interval_s / previous_s);
                 }
-                pose = &result.odometry->estimate(*registered, mapper.sdf());
+                pose = &result.odometry->estimate(scan, mapper.sdf(), sweep ? &*sweep : nullptr);
+                if (deskew && i == 0 && sequence.size() > 1 && !scan.point_time_s.empty()) {
+                    // No pose before the first scan tells its sweep's motion: the next scan
+                    // does, before the first is mapped.
+                    result.odometry->bootstrap_sweep(
+                        scan, sequence.load(1),
+                        scan_interval_s(sequence, 0, 1, config.deskew.scan_period_s));
+                }
                 scan.T_world_sensor = result.odometry->poses().back();
             }
             if (deskew && !(pose && pose->source == PoseSource::kSkipped)) {

@@ -38,6 +38,57 @@ RegistrationSolverConfig solver_config(const OdometryConfig& c, double kernel_sc
     return solver;
 }
 
+/// Point-to-plane ICP coarse to fine from `start`: the last stage's result, its pose (the start
+/// when no stage was accepted), its fitness and the iterations of all stages.
+struct IcpRun {
+    RegistrationResult result;
+    Eigen::Isometry3d pose;
+    double inlier_ratio = 0.0;
+    int iterations = 0;
+};
+
+/// The stages of OdometryConfig (icp_coarse_correspondence_m, then icp_max_correspondence_m) on
+/// `points` (deskewed), or on `measured` with their sweep's motion estimated when `sweep` is
+/// given; the fitness is the deskewed points'.
+IcpRun run_icp_stages(const OdometryConfig& c, const std::vector<Eigen::Vector3f>& points,
+                      const std::vector<Eigen::Vector3f>* measured, const SweepModel* sweep,
+                      const ReferencePlanes& planes, const Eigen::Isometry3d& start) {
+    std::vector<std::pair<double, double>> stages;  // correspondence, kernel scale
+    if (c.icp_coarse_correspondence_m > c.icp_max_correspondence_m) {
+        stages.emplace_back(c.icp_coarse_correspondence_m, 0.25 * c.icp_coarse_correspondence_m);
+    }
+    stages.emplace_back(c.icp_max_correspondence_m, c.icp_kernel_scale_m);
+    IcpRun run;
+    run.pose = start;
+    for (const auto& [correspondence_m, scale_m] : stages) {
+        PointToPlaneIcpConfig icp_config;
+        icp_config.max_correspondence_distance_m = correspondence_m;
+        icp_config.solver = solver_config(c, scale_m);
+        run.result = sweep ? register_point_to_plane(*measured, run.pose, planes, icp_config, sweep)
+                           : register_point_to_plane(points, run.pose, planes, icp_config);
+        run.iterations += run.result.iterations;
+        if (run.result.accepted()) run.pose = run.result.T_world_sensor;
+    }
+    run.inlier_ratio = point_to_plane_inlier_ratio(
+        points, run.pose, planes, c.icp_max_correspondence_m, c.icp_kernel_scale_m);
+    return run;
+}
+
+/// The points of `selected` of `points_sensor`, each moved by exp(t_i / interval_s * twist)
+/// (deskewed at constant velocity; as they are for a zero twist).
+std::vector<Eigen::Vector3f> deskewed_points(const std::vector<Eigen::Vector3f>& points_sensor,
+                                             const std::vector<double>& times_s,
+                                             const std::vector<std::size_t>& selected,
+                                             const Vector6d& twist, double interval_s) {
+    std::vector<Eigen::Vector3f> out(selected.size());
+    for (std::size_t j = 0; j < selected.size(); ++j) {
+        const std::size_t i = selected[j];
+        out[j] = (se3_exp(times_s[i] / interval_s * twist) * points_sensor[i].cast<double>())
+                     .cast<float>();
+    }
+    return out;
+}
+
 }  // namespace
 
 const char* to_string(PoseSource source) {
@@ -83,20 +134,60 @@ ScanOdometry::ScanOdometry(const OdometryConfig& config) : config_(config) {
     require(config.sdf_kernel_scale_m > 0.0, "sdf_kernel_scale_m", "must be positive");
     require(config.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
     require(config.min_scan_points >= 0, "min_scan_points", "must be >= 0");
+    require(config.sweep_prior_translation_m > 0.0, "sweep_prior_translation_m",
+            "must be positive");
+    require(config.sweep_prior_rotation_deg > 0.0, "sweep_prior_rotation_deg", "must be positive");
 }
 
-const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& map) {
+Eigen::Isometry3d ScanOdometry::sweep_motion(std::size_t i) const {
+    const OdometryRecord& record = records_.at(i);
+    Vector6d twist;
+    for (int j = 0; j < 6; ++j) twist[j] = record.sweep_twist[j];
+    return se3_exp(twist);
+}
+
+const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& map,
+                                             const SweepPrior* sweep_prior) {
     const auto start = std::chrono::steady_clock::now();
     OdometryRecord record;
-    // 1. Registration points.
-    const std::vector<Eigen::Vector3f> points =
-        select_registration_points(scan.points_sensor, point_config(config_, config_.voxel_size_m));
+    // 1. Registration points: as measured (`measured`, with their sweep fractions) and deskewed
+    // at the prior's motion (`points`), or as given without a prior.
+    const std::vector<std::size_t> selected = select_registration_point_indices(
+        scan.points_sensor, point_config(config_, config_.voxel_size_m));
+    std::vector<Eigen::Vector3f> points(selected.size());
+    for (std::size_t j = 0; j < selected.size(); ++j) points[j] = scan.points_sensor[selected[j]];
+    std::vector<Eigen::Vector3f> measured;
+    SweepModel sweep;
+    if (sweep_prior) {
+        if (scan.point_time_s.size() != scan.points_sensor.size()) {
+            throw DataError("scan '" + scan.source.string() + "' has " +
+                            std::to_string(scan.point_time_s.size()) + " point times for " +
+                            std::to_string(scan.points_sensor.size()) + " points");
+        }
+        if (!(sweep_prior->interval_s > 0.0)) {
+            throw DataError("scan '" + scan.source.string() +
+                            "': the sweep's interval must be positive");
+        }
+        sweep.twist_prior = se3_log(sweep_prior->T_expected);
+        sweep.prior_sigma_translation_m = config_.sweep_prior_translation_m;
+        sweep.prior_sigma_rotation_rad = config_.sweep_prior_rotation_deg * M_PI / 180.0;
+        sweep.fractions.resize(selected.size());
+        for (std::size_t j = 0; j < selected.size(); ++j) {
+            sweep.fractions[j] =
+                static_cast<float>(scan.point_time_s[selected[j]] / sweep_prior->interval_s);
+        }
+        measured = points;
+        points = deskewed_points(scan.points_sensor, scan.point_time_s, selected, sweep.twist_prior,
+                                 sweep_prior->interval_s);
+        for (int j = 0; j < 6; ++j) record.sweep_twist[j] = sweep.twist_prior[j];
+    }
     record.points = points.size();
 
     // 2. Prediction.
     const std::size_t k = poses_.size();
     Eigen::Isometry3d prediction = scan.T_world_sensor;  // the first scan anchors the world
-    if (k == 1) prediction = poses_[0];
+    // The second scan: at rest, or where the first sweep's motion (bootstrap_sweep) took it.
+    if (k == 1) prediction = poses_[0] * sweep_motion(0);
     if (k >= 2) prediction = predict_constant_velocity(poses_[k - 2], poses_[k - 1]);
 
     Eigen::Isometry3d estimate = prediction;
@@ -111,6 +202,8 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
         RegistrationResult result;
         int iterations = 0;
         const bool icp = k <= static_cast<std::size_t>(config_.icp_warmup_scans);
+        // The last stage estimates the sweep's motion: the SDF's, or ICP's in the warm-up.
+        const bool continuous = sweep_prior && config_.estimate_sweep;
         // After the warm-up, ICP (when icp_before_sdf) only finds the SDF registration's start.
         Eigen::Isometry3d sdf_start = prediction;
         bool icp_found_start = false;
@@ -122,33 +215,11 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
             }
             if (!reference.empty()) {
                 const ReferencePlanes planes(reference, PlaneFitConfig{});
-                std::vector<std::pair<double, double>> stages;  // correspondence, kernel scale
-                const double coarse_m = config_.icp_coarse_correspondence_m;
-                if (coarse_m > config_.icp_max_correspondence_m) {
-                    stages.emplace_back(coarse_m, 0.25 * coarse_m);
-                }
-                stages.emplace_back(config_.icp_max_correspondence_m, config_.icp_kernel_scale_m);
-                // Coarse to fine from `start`: the last stage's result, its pose (the start when
-                // no stage was accepted) and its fitness.
-                struct IcpRun {
-                    RegistrationResult result;
-                    Eigen::Isometry3d pose;
-                    double inlier_ratio = 0.0;
-                };
+                const bool icp_sweep = icp && continuous;
                 const auto run_icp = [&](const Eigen::Isometry3d& start) {
-                    IcpRun run;
-                    run.pose = start;
-                    for (const auto& [correspondence_m, scale_m] : stages) {
-                        PointToPlaneIcpConfig icp_config;
-                        icp_config.max_correspondence_distance_m = correspondence_m;
-                        icp_config.solver = solver_config(config_, scale_m);
-                        run.result = register_point_to_plane(points, run.pose, planes, icp_config);
-                        iterations += run.result.iterations;
-                        if (run.result.accepted()) run.pose = run.result.T_world_sensor;
-                    }
-                    run.inlier_ratio = point_to_plane_inlier_ratio(points, run.pose, planes,
-                                                                   config_.icp_max_correspondence_m,
-                                                                   config_.icp_kernel_scale_m);
+                    IcpRun run = run_icp_stages(config_, points, icp_sweep ? &measured : nullptr,
+                                                icp_sweep ? &sweep : nullptr, planes, start);
+                    iterations += run.iterations;
                     return run;
                 };
                 IcpRun best = run_icp(prediction);
@@ -192,10 +263,15 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
             for (const double scale_m : scales) {
                 SdfRegistrationConfig sdf_config;
                 sdf_config.solver = solver_config(config_, scale_m);
-                result = register_to_sdf(points, from, field, sdf_config);
+                result = continuous ? register_to_sdf(measured, from, field, sdf_config, &sweep)
+                                    : register_to_sdf(points, from, field, sdf_config);
                 iterations += result.iterations;
                 if (result.accepted()) from = result.T_world_sensor;
             }
+        }
+        if (continuous && result.accepted()) {
+            for (int j = 0; j < 6; ++j) record.sweep_twist[j] = result.sweep_twist[j];
+            record.sweep_estimated = true;
         }
         // 4. The last stage's pose if it was accepted; else ICP's, when ICP found the SDF stage's
         // start (a registration to the map that does not converge within max_iterations, e.g.
@@ -229,6 +305,49 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
     poses_.push_back(estimate);
     records_.push_back(record);
     return records_.back();
+}
+
+bool ScanOdometry::bootstrap_sweep(const Scan& first, const Scan& second, double interval_s) {
+    if (records_.size() != 1 || records_[0].source != PoseSource::kFirst ||
+        !config_.estimate_sweep || first.point_time_s.size() != first.points_sensor.size() ||
+        second.point_time_s.size() != second.points_sensor.size() || first.points_sensor.empty() ||
+        second.points_sensor.empty() || !(interval_s > 0.0)) {
+        return false;
+    }
+    const std::vector<std::size_t> reference_selected = select_registration_point_indices(
+        first.points_sensor, point_config(config_, 0.5 * config_.voxel_size_m));
+    const std::vector<std::size_t> selected = select_registration_point_indices(
+        second.points_sensor, point_config(config_, config_.voxel_size_m));
+    if (selected.size() < static_cast<std::size_t>(config_.min_scan_points)) return false;
+    // The fixed point of "both scans deskewed at the motion between their poses": the relative
+    // pose of two sweeps bent alike barely depends on the bend, so a few rounds settle it.
+    constexpr int kMaxRounds = 8;
+    const Eigen::Isometry3d& T_first = poses_[0];
+    Vector6d twist = Vector6d::Zero();
+    bool found = false;
+    for (int round = 0; round < kMaxRounds; ++round) {
+        const std::vector<Eigen::Vector3f> reference_sensor = deskewed_points(
+            first.points_sensor, first.point_time_s, reference_selected, twist, interval_s);
+        std::vector<Eigen::Vector3d> reference(reference_sensor.size());
+        for (std::size_t j = 0; j < reference.size(); ++j) {
+            reference[j] = T_first * reference_sensor[j].cast<double>();
+        }
+        const ReferencePlanes planes(reference, PlaneFitConfig{});
+        const std::vector<Eigen::Vector3f> points =
+            deskewed_points(second.points_sensor, second.point_time_s, selected, twist, interval_s);
+        const IcpRun run =
+            run_icp_stages(config_, points, nullptr, nullptr, planes, T_first * se3_exp(twist));
+        if (!run.result.accepted()) break;
+        const Vector6d next = se3_log(T_first.inverse() * run.pose);
+        const Vector6d change = next - twist;
+        twist = next;
+        found = true;
+        if (change.head<3>().norm() < 1e-3 && change.tail<3>().norm() < 1e-4) break;
+    }
+    if (!found) return false;
+    for (int j = 0; j < 6; ++j) records_[0].sweep_twist[j] = twist[j];
+    records_[0].sweep_estimated = true;
+    return true;
 }
 
 void ScanOdometry::remember_scan(const Scan& scan) {

@@ -59,6 +59,19 @@ struct OdometryConfig {
     /// A solve whose range-scaled Hessian is worse conditioned is not trusted (the prediction is
     /// kept): a single plane or a featureless corridor.
     double max_condition_number = 1e4;
+    /// Scans with per-point times (deskewing active) register as measured, the motion during
+    /// their sweep estimated together with the pose (continuous time: registration_solver.hpp,
+    /// Eq. (3)-(4)), and are mapped deskewed with that motion. The prediction's motion is the
+    /// motion between the last two poses, one scan interval stale; where the pose is the sweep's
+    /// start (the simulator, many drivers) it misses the sweep by a whole interval
+    /// (docs/odometry.md). Used in the registration to the map (after the ICP warm-up); ICP's
+    /// stage registers the points deskewed at the prediction's motion. false: register and map
+    /// at the prediction's motion and the motion to the estimated pose, as before.
+    bool estimate_sweep = true;
+    /// Standard deviations of the sweep's motion about the prediction's (Eq. (4)), over one
+    /// scan interval: how far the velocity may change from one scan to the next.
+    double sweep_prior_translation_m = 0.01;
+    double sweep_prior_rotation_deg = 0.1;
     /// Scans with fewer registration points are not mapped (a warning; their pose is the
     /// prediction).
     int min_scan_points = 100;

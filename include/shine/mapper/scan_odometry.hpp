@@ -19,6 +19,11 @@
 //   4. a registration to the map that is not accepted (RegistrationResult::accepted) leaves ICP's
 //      pose when ICP found its start, else the prediction; the record says which (source) and
 //      why (tried, status).
+// A scan with per-point times comes with the motion expected during its sweep (SweepPrior: the
+// prediction's). ICP registers its points deskewed at that motion; the registration to the map
+// takes them as measured and estimates the sweep's motion with the pose (estimate_sweep;
+// registration_solver.hpp, Eq. (3)-(4)), which the mapper then deskews the scan with
+// (sweep_motion).
 // The mapper then maps the scan at the estimated pose. Deterministic: the registration sums are
 // the same bits for any thread count.
 #pragma once
@@ -77,6 +82,18 @@ struct OdometryRecord {
     /// how many headings were tried after the prediction's ICP fell short (0: none).
     double icp_inlier_ratio = 0.0;
     std::int32_t yaw_hypotheses = 0;
+    /// The motion during the scan's sweep over the prior's interval (a twist: rho m, phi rad):
+    /// estimated with the pose when sweep_estimated, else the prior's (zero without one).
+    double sweep_twist[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    bool sweep_estimated = false;
+};
+
+/// The motion expected during a scan's sweep: `T_expected` over `interval_s` seconds (the
+/// constant-velocity prediction's: the motion between the last two poses, scaled to the
+/// interval). The scan's point_time_s are seconds relative to its pose (scan_deskew.hpp).
+struct SweepPrior {
+    Eigen::Isometry3d T_expected = Eigen::Isometry3d::Identity();
+    double interval_s = 0.1;
 };
 
 /// The odometry of one run: poses and records of the scans seen so far.
@@ -88,8 +105,23 @@ class ScanOdometry {
     /// Estimates the pose of the next scan (`scan.points_sensor`; its own pose is used for the
     /// first scan only, as the world frame's anchor) with
     /// `map` holding the scans estimated before it (steps 1-4 of the file comment). Returns the
-    /// record; pose() is the estimate. Call remember_scan() once the scan is mapped.
-    const OdometryRecord& estimate(const Scan& scan, const NeuralSdf& map);
+    /// record; pose() is the estimate. Call remember_scan() once the scan is mapped. With
+    /// `sweep`, the scan is as measured and carries per-point times (file comment); throws
+    /// DataError if their count differs from the points'.
+    const OdometryRecord& estimate(const Scan& scan, const NeuralSdf& map,
+                                   const SweepPrior* sweep = nullptr);
+
+    /// The first scan's sweep, which no earlier pose gives: from `second`, the next scan,
+    /// before `first` is mapped. Both are deskewed at one constant velocity, the motion between
+    /// their poses, and the second registered to the first by ICP, until the motion settles.
+    /// Sets record 0's sweep (and with it the second scan's prediction) and returns true; false
+    /// (nothing changed) unless estimate() has seen only `first`, both carry per-point times
+    /// (seconds relative to their poses, `interval_s` apart), estimate_sweep is on and ICP
+    /// converged.
+    bool bootstrap_sweep(const Scan& first, const Scan& second, double interval_s);
+
+    /// The motion during scan i's sweep over its prior's interval (record i's sweep_twist).
+    Eigen::Isometry3d sweep_motion(std::size_t i) const;
 
     /// Keeps `scan` (at its T_world_sensor) as an ICP reference while ICP scans are still to
     /// come. Called after estimate() for mapped scans, and when resuming for the replayed ones.
