@@ -469,6 +469,7 @@ int run_map(const MapOptions& given_options) {
     json["dynamic"] = {
         {"enabled", config.dynamic.enabled},
         {"points_dropped", stats.dynamic_points_dropped},
+        {"objects_dropped", stats.dynamic_objects},
         {"share_dropped", stats.rays ? static_cast<double>(stats.dynamic_points_dropped) /
                                            static_cast<double>(stats.rays)
                                      : 0.0},

@@ -125,9 +125,21 @@ void BatchMapper::finish_scans() {
         for (std::size_t r = begin; r < end; ++r) points.push_back(rays_.endpoint(r));
         std::vector<std::uint32_t> voxel_begin = rays_.scan_voxel_begin(s);
         const std::size_t first_group = rays_.group_at_or_after(begin);
-        dropped += filter_voxel_grouped(points, voxel_begin, [&](std::size_t, std::size_t run) {
-            return !is_dynamic(votes_[first_group + run], config_.dynamic);
-        });
+        // Each point's own votes (its voxel group's), then spread over compact objects.
+        std::vector<std::uint8_t> dynamic(points.size(), 0);
+        for (std::size_t i = 0, run = 0; i < points.size(); ++i) {
+            if (voxel_begin.empty()) {
+                run = i;
+            } else {
+                while (run + 1 < voxel_begin.size() && voxel_begin[run + 1] <= i) ++run;
+            }
+            dynamic[i] = is_dynamic(votes_[first_group + run], config_.dynamic) ? 1 : 0;
+        }
+        const DynamicObjectStats objects =
+            spread_dynamic_to_objects(points, dynamic, config_.dynamic.objects);
+        stats_.dynamic_objects += objects.objects_dynamic;
+        dropped += filter_voxel_grouped(points, voxel_begin,
+                                        [&](std::size_t i, std::size_t) { return !dynamic[i]; });
         kept.add_scan(rays_.origin_of_scan(s), points, voxel_begin);
     }
     rays_ = std::move(kept);

@@ -189,9 +189,21 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
                                  current.points_map.size(), dynamic, votes.data());
         }
     }
+    // Each point's own votes, spread over the compact objects of its scan (dynamic_objects.hpp).
+    const auto dynamic_flags = [&](const std::vector<Eigen::Vector3f>& points,
+                                   const std::vector<FreeSpaceVotes>& point_votes) {
+        std::vector<std::uint8_t> flags(points.size());
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            flags[i] = is_dynamic(point_votes[i], dynamic) ? 1 : 0;
+        }
+        stats_.dynamic_objects +=
+            spread_dynamic_to_objects(points, flags, dynamic.objects).objects_dynamic;
+        return flags;
+    };
+    const std::vector<std::uint8_t> current_dynamic = dynamic_flags(current.points_map, votes);
     std::size_t kept = 0;
     for (std::size_t i = 0; i < votes.size(); ++i) {
-        if (is_dynamic(votes[i], dynamic)) continue;
+        if (current_dynamic[i]) continue;
         current.points_map[kept] = current.points_map[i];
         votes[kept++] = votes[i];
     }
@@ -211,9 +223,10 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
         add_free_space_votes(image, T_sensor_map, points.data(), points.size(), dynamic,
                              past_votes.data());
         const bool with_normals = normals.size() == points.size();
+        const std::vector<std::uint8_t> past_dynamic = dynamic_flags(points, past_votes);
         std::size_t k = 0;
         for (std::size_t i = 0; i < points.size(); ++i) {
-            if (is_dynamic(past_votes[i], dynamic)) continue;
+            if (past_dynamic[i]) continue;
             points[k] = points[i];
             past_votes[k] = past_votes[i];
             if (with_normals) normals[k] = normals[i];

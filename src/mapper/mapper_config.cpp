@@ -277,7 +277,15 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"min_free_share", number(c.dynamic.min_free_share, 1e-6, 1.0)},
           {"far_vote_frames", number(c.dynamic.far_vote_frames, 0, 100000)},
           {"far_max_near_hits", number(c.dynamic.far_max_near_hits, 0, 65535)},
-          {"far_min_free_share", number(c.dynamic.far_min_free_share, 1e-6, 1.0)}}},
+          {"far_min_free_share", number(c.dynamic.far_min_free_share, 1e-6, 1.0)},
+          {"object_min_dynamic_share", number(c.dynamic.objects.min_dynamic_share, 0.0, 1.0)},
+          {"object_min_points", number(c.dynamic.objects.min_points, 1, 100000000)},
+          {"object_min_dynamic_points", number(c.dynamic.objects.min_dynamic_points, 1, 100000000)},
+          {"object_voxel_m", number(c.dynamic.objects.voxel_m, 1e-4, 100.0)},
+          {"object_ground_cell_m", number(c.dynamic.objects.ground_cell_m, 1e-4, 100.0)},
+          {"object_min_height_m", number(c.dynamic.objects.min_height_m, 0.0, 100.0)},
+          {"object_max_extent_m", number(c.dynamic.objects.max_extent_m, 1e-4, 1000.0)},
+          {"object_max_height_m", number(c.dynamic.objects.max_height_m, 1e-4, 1000.0)}}},
         {"bake",
          {{"voxel_size_m", number(c.bake.voxel_size_m, 0.0, 100.0)},
           {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)},
@@ -354,6 +362,12 @@ void apply_scale_free_defaults(MapperConfig& c) {
     // outdoors, 9 mm on the object scene).
     if (!c.is_set("dynamic.margin_m") && c.dynamic.margin_m == outdoor.dynamic.margin_m) {
         c.dynamic.margin_m = 2.0f * c.sampling.surface_band_m;
+    }
+    // Moving objects are cars and people: on the object scene the whole scan is one compact
+    // object, so its points keep their own votes (dynamic_objects.hpp).
+    if (c.resolved_scene() == ScenePreset::kObject &&
+        !c.is_set("dynamic.object_min_dynamic_share")) {
+        c.dynamic.objects.min_dynamic_share = 0.0f;
     }
     // Outdoors a leaf finer than 0.2 m keeps the coarse levels: one more level per halving of
     // the leaf, so the coarsest cell stays 0.8 m (4 levels at 0.1 m). Measured on real scans

@@ -38,6 +38,9 @@ struct MappingStats {
     double load_seconds = 0.0;  ///< reading and preprocessing scans (dynamic_seconds included)
     /// Points the dynamic-point filter dropped (free_space_votes.hpp); rays counts them too.
     std::size_t dynamic_points_dropped = 0;
+    /// Objects of single scans dropped whole because enough of their points were dynamic
+    /// (dynamic_objects.hpp).
+    std::size_t dynamic_objects = 0;
     double dynamic_seconds = 0.0;   ///< range images and free-space votes
     double allocate_seconds = 0.0;  ///< growing the octree
     double normals_seconds = 0.0;   ///< surface normals for the label correction

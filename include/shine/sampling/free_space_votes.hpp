@@ -30,6 +30,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "shine/sampling/dynamic_objects.hpp"
 #include "shine/sampling/range_image.hpp"
 
 namespace shine {
@@ -56,6 +57,8 @@ struct DynamicPointConfig {
     int far_max_near_hits = 1;
     /// Of the far free + far hit votes (at least min_free_votes far free votes too).
     float far_min_free_share = 0.5f;
+    /// Compact objects most of whose points are dynamic are dropped whole (dynamic_objects.hpp).
+    DynamicObjectConfig objects;
 };
 
 /// The votes a point received: from the near scans (vote_frames) and the far ones.

@@ -1,0 +1,58 @@
+// Dynamic objects: a compact object of one scan most of whose points other scans see through is
+// dropped whole.
+//
+// The free-space votes (free_space_votes.hpp) judge each point alone, and a mover is seen through
+// only where a later (or earlier) scan's rays pass its place: a car in a lane where the next car
+// always hides it, or the side of a car that no other scan looked behind, keeps most of its points
+// although some of them were seen through. A point belongs to a rigid object with its neighbours,
+// so the votes of part of an object speak for all of it. Per scan (map frame, z up):
+//   1. ground: each point's height above the lowest point of the scan within the 3 x 3 cells of
+//      ground_cell_m around it; points less than min_height_m above it are ground and are left
+//      to their own votes (the road under a car is static);
+//   2. objects: the other points, joined when their voxels of voxel_m touch (26-neighbourhood);
+//   3. an object no wider (horizontal bounding-box diagonal) than max_extent_m, no taller than
+//      max_height_m, with at least min_points points of which at least min_dynamic_share are
+//      dynamic, becomes dynamic whole. Buildings, hedges and rows of parked cars are wider than a
+//      car, so a few false free votes on them (grazing angles) never spread.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+namespace shine {
+
+/// Settings of the propagation (YAML `dynamic.object_*`). The lengths are those of the things
+/// that move in streets and rooms (cars, cyclists, people), in metres whatever the map's leaf;
+/// on the object scene, where nothing of that size moves, the propagation is off by default
+/// (MapperConfig). Measured on the street with 20 movers, three streets without and the real walk
+/// (docs/movers.md).
+struct DynamicObjectConfig {
+    /// Share of an object's points that must be dynamic for all of them to be; 0 switches the
+    /// propagation off.
+    float min_dynamic_share = 0.1f;
+    int min_points = 5;          ///< smaller objects keep their points' own votes
+    int min_dynamic_points = 3;  ///< and so do objects with fewer dynamic points
+    float voxel_m = 0.3f;        ///< points in touching voxels of this size are one object
+    float ground_cell_m = 2.0f;  ///< cells of the local ground height
+    float min_height_m = 0.2f;   ///< points lower above the local ground are ground
+    float max_extent_m = 8.0f;   ///< wider objects (horizontal diagonal) are structures
+    float max_height_m = 4.0f;   ///< taller objects are structures
+};
+
+/// What the propagation did to one scan.
+struct DynamicObjectStats {
+    std::size_t objects = 0;          ///< objects found (with at least min_points points)
+    std::size_t objects_dynamic = 0;  ///< of them, made dynamic whole
+    std::size_t points_added = 0;     ///< points made dynamic that were not before
+};
+
+/// Marks dynamic (dynamic[i] = 1) every point of the objects of `points_map` (one scan, map frame
+/// with z up) whose share of dynamic points reaches config.min_dynamic_share; see the file
+/// comment. Deterministic. Throws DataError if the sizes differ, ConfigError for non-positive
+/// sizes.
+DynamicObjectStats spread_dynamic_to_objects(const std::vector<Eigen::Vector3f>& points_map,
+                                             std::vector<std::uint8_t>& dynamic,
+                                             const DynamicObjectConfig& config);
+
+}  // namespace shine

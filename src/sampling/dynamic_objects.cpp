@@ -1,0 +1,184 @@
+// Dynamic objects: the votes of part of a compact object speak for all of it.
+#include "shine/sampling/dynamic_objects.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <string>
+#include <unordered_map>
+
+#include "shine/core/error.hpp"
+
+namespace shine {
+
+namespace dynamic_objects_internal {
+namespace {
+
+constexpr std::int64_t kOffset = std::int64_t(1) << 20;
+constexpr std::uint64_t kMask = (std::uint64_t(1) << 21) - 1;
+
+/// Integer cell coordinates packed into 64 bits (21 bits each, offset to be positive).
+std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
+    return ((std::uint64_t(x + kOffset) & kMask) << 42) |
+           ((std::uint64_t(y + kOffset) & kMask) << 21) | (std::uint64_t(z + kOffset) & kMask);
+}
+
+std::int64_t cell(float v, float size) { return std::int64_t(std::floor(v / size)); }
+
+/// Union-find with path halving; the smaller index becomes the root, so that the result does
+/// not depend on the order of the unions.
+struct Components {
+    std::vector<std::uint32_t> parent;
+    explicit Components(std::size_t n) : parent(n) {
+        std::iota(parent.begin(), parent.end(), std::uint32_t(0));
+    }
+    std::uint32_t find(std::uint32_t a) {
+        while (parent[a] != a) {
+            parent[a] = parent[parent[a]];
+            a = parent[a];
+        }
+        return a;
+    }
+    void join(std::uint32_t a, std::uint32_t b) {
+        a = find(a);
+        b = find(b);
+        if (a == b) return;
+        if (a < b) {
+            parent[b] = a;
+        } else {
+            parent[a] = b;
+        }
+    }
+};
+
+void check(const DynamicObjectConfig& c) {
+    const auto positive = [](float v, const char* key) {
+        if (!(v > 0.0f)) {
+            throw ConfigError(std::string("dynamic.object_") + key + " must be positive (got " +
+                              std::to_string(v) + ")");
+        }
+    };
+    positive(c.voxel_m, "voxel_m");
+    positive(c.ground_cell_m, "ground_cell_m");
+    positive(c.max_extent_m, "max_extent_m");
+    positive(c.max_height_m, "max_height_m");
+    if (!(c.min_dynamic_share >= 0.0f && c.min_dynamic_share <= 1.0f)) {
+        throw ConfigError("dynamic.object_min_dynamic_share must be in [0, 1] (got " +
+                          std::to_string(c.min_dynamic_share) + ")");
+    }
+    if (c.min_points < 1) throw ConfigError("dynamic.object_min_points must be at least 1");
+    if (c.min_dynamic_points < 1) {
+        throw ConfigError("dynamic.object_min_dynamic_points must be at least 1");
+    }
+    if (!(c.min_height_m >= 0.0f)) {
+        throw ConfigError("dynamic.object_min_height_m must be >= 0");
+    }
+}
+
+}  // namespace
+}  // namespace dynamic_objects_internal
+
+DynamicObjectStats spread_dynamic_to_objects(const std::vector<Eigen::Vector3f>& points_map,
+                                             std::vector<std::uint8_t>& dynamic,
+                                             const DynamicObjectConfig& config) {
+    using namespace dynamic_objects_internal;
+    check(config);
+    if (dynamic.size() != points_map.size()) {
+        throw DataError("dynamic objects: " + std::to_string(dynamic.size()) + " flags for " +
+                        std::to_string(points_map.size()) + " points");
+    }
+    DynamicObjectStats stats;
+    if (config.min_dynamic_share <= 0.0f || points_map.empty()) return stats;
+    const std::size_t n = points_map.size();
+
+    // 1. The lowest point of each ground cell, then each point's height above the lowest of the
+    // 3 x 3 cells around it.
+    std::unordered_map<std::uint64_t, float> lowest;
+    lowest.reserve(n / 4);
+    for (const Eigen::Vector3f& p : points_map) {
+        if (!p.allFinite()) continue;
+        const std::uint64_t key =
+            pack(cell(p.x(), config.ground_cell_m), cell(p.y(), config.ground_cell_m), 0);
+        auto [it, inserted] = lowest.emplace(key, p.z());
+        if (!inserted) it->second = std::min(it->second, p.z());
+    }
+    // 2. Object points in voxels, voxels joined to their touching neighbours.
+    std::vector<std::uint32_t> voxel_of(n, std::numeric_limits<std::uint32_t>::max());
+    std::unordered_map<std::uint64_t, std::uint32_t> voxels;
+    std::vector<std::array<std::int64_t, 3>> voxel_cells;
+    for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3f& p = points_map[i];
+        if (!p.allFinite()) continue;
+        const std::int64_t gx = cell(p.x(), config.ground_cell_m);
+        const std::int64_t gy = cell(p.y(), config.ground_cell_m);
+        float ground = std::numeric_limits<float>::infinity();
+        for (std::int64_t dx = -1; dx <= 1; ++dx) {
+            for (std::int64_t dy = -1; dy <= 1; ++dy) {
+                const auto it = lowest.find(pack(gx + dx, gy + dy, 0));
+                if (it != lowest.end()) ground = std::min(ground, it->second);
+            }
+        }
+        if (p.z() - ground < config.min_height_m) continue;
+        const std::array<std::int64_t, 3> c = {
+            cell(p.x(), config.voxel_m), cell(p.y(), config.voxel_m), cell(p.z(), config.voxel_m)};
+        auto [it, inserted] =
+            voxels.emplace(pack(c[0], c[1], c[2]), static_cast<std::uint32_t>(voxel_cells.size()));
+        if (inserted) voxel_cells.push_back(c);
+        voxel_of[i] = it->second;
+    }
+    Components components(voxel_cells.size());
+    for (std::uint32_t v = 0; v < voxel_cells.size(); ++v) {
+        const auto& c = voxel_cells[v];
+        for (std::int64_t dx = -1; dx <= 1; ++dx) {
+            for (std::int64_t dy = -1; dy <= 1; ++dy) {
+                for (std::int64_t dz = -1; dz <= 1; ++dz) {
+                    const auto it = voxels.find(pack(c[0] + dx, c[1] + dy, c[2] + dz));
+                    if (it != voxels.end()) components.join(v, it->second);
+                }
+            }
+        }
+    }
+    // 3. Each object's size, extent and dynamic points.
+    struct Object {
+        std::size_t points = 0;
+        std::size_t dynamic = 0;
+        Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+        Eigen::Vector3f hi = Eigen::Vector3f::Constant(-std::numeric_limits<float>::infinity());
+    };
+    std::unordered_map<std::uint32_t, Object> objects;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (voxel_of[i] == std::numeric_limits<std::uint32_t>::max()) continue;
+        Object& o = objects[components.find(voxel_of[i])];
+        ++o.points;
+        o.dynamic += dynamic[i] ? 1 : 0;
+        o.lo = o.lo.cwiseMin(points_map[i]);
+        o.hi = o.hi.cwiseMax(points_map[i]);
+    }
+    std::unordered_map<std::uint32_t, bool> spread;
+    for (const auto& [root, o] : objects) {
+        if (o.points < static_cast<std::size_t>(config.min_points)) continue;
+        ++stats.objects;
+        const Eigen::Vector3f size = o.hi - o.lo;
+        const bool compact =
+            size.head<2>().norm() <= config.max_extent_m && size.z() <= config.max_height_m;
+        const bool moved = static_cast<double>(o.dynamic) >=
+                               static_cast<double>(config.min_dynamic_share) * o.points &&
+                           o.dynamic >= static_cast<std::size_t>(config.min_dynamic_points);
+        if (compact && moved) {
+            spread[root] = true;
+            ++stats.objects_dynamic;
+        }
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+        if (voxel_of[i] == std::numeric_limits<std::uint32_t>::max() || dynamic[i]) continue;
+        if (spread.count(components.find(voxel_of[i])) != 0) {
+            dynamic[i] = 1;
+            ++stats.points_added;
+        }
+    }
+    return stats;
+}
+
+}  // namespace shine
