@@ -68,7 +68,7 @@ TEST(DynamicObjects, ACarWithAFewDynamicPointsIsDynamicWholeAndTheGroundUnderItI
     add_box(scene, {-2.0f, 1.0f, 0.3f}, {2.4f, 2.8f, 1.5f});  // a car body above the road
     const std::size_t car = scene.first_of[0], end = scene.points.size();
     std::vector<std::uint8_t> dynamic(scene.points.size(), 0);
-    flag(dynamic, car, end, 7);                  // 14 % of the car seen through
+    flag(dynamic, car, end, 5);                  // 20 % of the car seen through
     flag(dynamic, 0, scene.ground_points, 500);  // a few ground points too
     const std::size_t ground_flags = count(dynamic, 0, scene.ground_points);
     const DynamicObjectStats stats = spread_dynamic_to_objects(scene.points, dynamic, {});
@@ -76,7 +76,7 @@ TEST(DynamicObjects, ACarWithAFewDynamicPointsIsDynamicWholeAndTheGroundUnderItI
     EXPECT_EQ(count(dynamic, 0, scene.ground_points), ground_flags);
     EXPECT_EQ(stats.objects, 1u);
     EXPECT_EQ(stats.objects_dynamic, 1u);
-    EXPECT_EQ(stats.points_added, (end - car) - ((end - car + 6) / 7));
+    EXPECT_EQ(stats.points_added, (end - car) - ((end - car + 4) / 5));
 }
 
 TEST(DynamicObjects, AWallWiderThanACarKeepsItsPointsOwnVotes) {
@@ -96,7 +96,7 @@ TEST(DynamicObjects, TooFewDynamicPointsOrAShareBelowTheThresholdSpreadNothing) 
     add_box(scene, {-2.0f, 1.0f, 0.3f}, {2.4f, 2.8f, 1.5f});
     const std::size_t car = scene.first_of[0], end = scene.points.size();
     std::vector<std::uint8_t> dynamic(scene.points.size(), 0);
-    flag(dynamic, car, end, 30);  // 3 %: below the 10 % share
+    flag(dynamic, car, end, 10);  // 10 %: below the 15 % share
     std::vector<std::uint8_t> before = dynamic;
     spread_dynamic_to_objects(scene.points, dynamic, {});
     EXPECT_EQ(dynamic, before);

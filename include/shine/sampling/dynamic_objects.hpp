@@ -30,7 +30,7 @@ namespace shine {
 struct DynamicObjectConfig {
     /// Share of an object's points that must be dynamic for all of them to be; 0 switches the
     /// propagation off.
-    float min_dynamic_share = 0.1f;
+    float min_dynamic_share = 0.15f;
     int min_points = 5;          ///< smaller objects keep their points' own votes
     int min_dynamic_points = 3;  ///< and so do objects with fewer dynamic points
     float voxel_m = 0.3f;        ///< points in touching voxels of this size are one object
