@@ -162,6 +162,8 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
     frame.allocate_seconds = seconds_since(start);
 
     window_votes_.push_back(std::move(votes));
+    window_objects_.push_back(std::move(current_objects_));
+    current_objects_ = {};
     window_.push_back(std::move(current));
     window_normals_.emplace_back();
     // The window holds the scans the normals and the replay need, the current one last.
@@ -171,6 +173,7 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
         window_.pop_front();
         window_normals_.pop_front();
         window_votes_.pop_front();
+        window_objects_.pop_front();
     }
 }
 
@@ -189,24 +192,32 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
                                  current.points_map.size(), dynamic, votes.data());
         }
     }
-    // Each point's own votes, spread over the compact objects of its scan (dynamic_objects.hpp).
-    const auto dynamic_flags = [&](const std::vector<Eigen::Vector3f>& points,
+    // Each point's own votes, spread over the compact objects of its scan (dynamic_objects.hpp),
+    // which the scan keeps while the scans after it vote on its points.
+    const bool objects = dynamic.objects.min_dynamic_share > 0.0f;
+    const auto dynamic_flags = [&](const ScanObjects* scan_objects,
                                    const std::vector<FreeSpaceVotes>& point_votes) {
-        std::vector<std::uint8_t> flags(points.size());
-        for (std::size_t i = 0; i < points.size(); ++i) {
+        std::vector<std::uint8_t> flags(point_votes.size());
+        for (std::size_t i = 0; i < point_votes.size(); ++i) {
             flags[i] = is_dynamic(point_votes[i], dynamic) ? 1 : 0;
         }
-        stats_.dynamic_objects +=
-            spread_dynamic_to_objects(points, flags, dynamic.objects).objects_dynamic;
+        if (scan_objects) {
+            stats_.dynamic_objects +=
+                spread_dynamic_to_objects(*scan_objects, flags, dynamic.objects).objects_dynamic;
+        }
         return flags;
     };
-    const std::vector<std::uint8_t> current_dynamic = dynamic_flags(current.points_map, votes);
+    if (objects) current_objects_ = find_scan_objects(current.points_map, dynamic.objects);
+    const std::vector<std::uint8_t> current_dynamic =
+        dynamic_flags(objects ? &current_objects_ : nullptr, votes);
     std::size_t kept = 0;
     for (std::size_t i = 0; i < votes.size(); ++i) {
         if (current_dynamic[i]) continue;
         current.points_map[kept] = current.points_map[i];
+        if (objects) current_objects_.object_of[kept] = current_objects_.object_of[i];
         votes[kept++] = votes[i];
     }
+    if (objects) current_objects_.object_of.resize(kept);
     frame.dynamic_dropped = votes.size() - kept;
     current.points_map.resize(kept);
     votes.resize(kept);
@@ -223,15 +234,20 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
         add_free_space_votes(image, T_sensor_map, points.data(), points.size(), dynamic,
                              past_votes.data());
         const bool with_normals = normals.size() == points.size();
-        const std::vector<std::uint8_t> past_dynamic = dynamic_flags(points, past_votes);
+        ScanObjects& past_objects = window_objects_[w];
+        const bool with_objects = objects && past_objects.object_of.size() == points.size();
+        const std::vector<std::uint8_t> past_dynamic =
+            dynamic_flags(with_objects ? &past_objects : nullptr, past_votes);
         std::size_t k = 0;
         for (std::size_t i = 0; i < points.size(); ++i) {
             if (past_dynamic[i]) continue;
             points[k] = points[i];
             past_votes[k] = past_votes[i];
             if (with_normals) normals[k] = normals[i];
+            if (with_objects) past_objects.object_of[k] = past_objects.object_of[i];
             ++k;
         }
+        if (with_objects) past_objects.object_of.resize(k);
         frame.dynamic_forgotten += points.size() - k;
         points.resize(k);
         past_votes.resize(k);
@@ -401,6 +417,7 @@ void IncrementalMapper::release_training_state() {
     window_ = {};
     window_normals_ = {};
     window_votes_ = {};
+    window_objects_ = {};
     voters_ = {};
     sdf_->octree.compact_structure();
 #if defined(__GLIBC__)

@@ -80,18 +80,13 @@ void check(const DynamicObjectConfig& c) {
 }  // namespace
 }  // namespace dynamic_objects_internal
 
-DynamicObjectStats spread_dynamic_to_objects(const std::vector<Eigen::Vector3f>& points_map,
-                                             std::vector<std::uint8_t>& dynamic,
-                                             const DynamicObjectConfig& config) {
+ScanObjects find_scan_objects(const std::vector<Eigen::Vector3f>& points_map,
+                              const DynamicObjectConfig& config) {
     using namespace dynamic_objects_internal;
     check(config);
-    if (dynamic.size() != points_map.size()) {
-        throw DataError("dynamic objects: " + std::to_string(dynamic.size()) + " flags for " +
-                        std::to_string(points_map.size()) + " points");
-    }
-    DynamicObjectStats stats;
-    if (config.min_dynamic_share <= 0.0f || points_map.empty()) return stats;
     const std::size_t n = points_map.size();
+    ScanObjects result;
+    result.object_of.assign(n, ScanObjects::kNoObject);
 
     // 1. The lowest point of each ground cell, then each point's height above the lowest of the
     // 3 x 3 cells around it.
@@ -105,7 +100,8 @@ DynamicObjectStats spread_dynamic_to_objects(const std::vector<Eigen::Vector3f>&
         if (!inserted) it->second = std::min(it->second, p.z());
     }
     // 2. Object points in voxels, voxels joined to their touching neighbours.
-    std::vector<std::uint32_t> voxel_of(n, std::numeric_limits<std::uint32_t>::max());
+    constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+    std::vector<std::uint32_t> voxel_of(n, kNone);
     std::unordered_map<std::uint64_t, std::uint32_t> voxels;
     std::vector<std::array<std::int64_t, 3>> voxel_cells;
     for (std::size_t i = 0; i < n; ++i) {
@@ -140,45 +136,89 @@ DynamicObjectStats spread_dynamic_to_objects(const std::vector<Eigen::Vector3f>&
             }
         }
     }
-    // 3. Each object's size, extent and dynamic points.
-    struct Object {
+    // 3. Each component's size and extent; the compact ones are numbered in order of their
+    // first point.
+    struct Extent {
         std::size_t points = 0;
-        std::size_t dynamic = 0;
         Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
         Eigen::Vector3f hi = Eigen::Vector3f::Constant(-std::numeric_limits<float>::infinity());
+        std::uint32_t id = kNone;  // its object, kNotCompact, or kNone before its first point
     };
-    std::unordered_map<std::uint32_t, Object> objects;
+    constexpr std::uint32_t kNotCompact = kNone - 1;
+    std::vector<Extent> extents(voxel_cells.size());
     for (std::size_t i = 0; i < n; ++i) {
-        if (voxel_of[i] == std::numeric_limits<std::uint32_t>::max()) continue;
-        Object& o = objects[components.find(voxel_of[i])];
-        ++o.points;
-        o.dynamic += dynamic[i] ? 1 : 0;
-        o.lo = o.lo.cwiseMin(points_map[i]);
-        o.hi = o.hi.cwiseMax(points_map[i]);
-    }
-    std::unordered_map<std::uint32_t, bool> spread;
-    for (const auto& [root, o] : objects) {
-        if (o.points < static_cast<std::size_t>(config.min_points)) continue;
-        ++stats.objects;
-        const Eigen::Vector3f size = o.hi - o.lo;
-        const bool compact =
-            size.head<2>().norm() <= config.max_extent_m && size.z() <= config.max_height_m;
-        const bool moved = static_cast<double>(o.dynamic) >=
-                               static_cast<double>(config.min_dynamic_share) * o.points &&
-                           o.dynamic >= static_cast<std::size_t>(config.min_dynamic_points);
-        if (compact && moved) {
-            spread[root] = true;
-            ++stats.objects_dynamic;
-        }
+        if (voxel_of[i] == kNone) continue;
+        Extent& e = extents[components.find(voxel_of[i])];
+        ++e.points;
+        e.lo = e.lo.cwiseMin(points_map[i]);
+        e.hi = e.hi.cwiseMax(points_map[i]);
     }
     for (std::size_t i = 0; i < n; ++i) {
-        if (voxel_of[i] == std::numeric_limits<std::uint32_t>::max() || dynamic[i]) continue;
-        if (spread.count(components.find(voxel_of[i])) != 0) {
-            dynamic[i] = 1;
-            ++stats.points_added;
+        if (voxel_of[i] == kNone) continue;
+        Extent& e = extents[components.find(voxel_of[i])];
+        if (e.id == kNone) {
+            const Eigen::Vector3f size = e.hi - e.lo;
+            const bool compact = e.points >= static_cast<std::size_t>(config.min_points) &&
+                                 size.head<2>().norm() <= config.max_extent_m &&
+                                 size.z() <= config.max_height_m;
+            e.id = compact ? result.num_objects++ : kNotCompact;
         }
+        if (e.id != kNotCompact) result.object_of[i] = e.id;
+    }
+    return result;
+}
+
+DynamicObjectStats spread_dynamic_to_objects(const ScanObjects& objects,
+                                             std::vector<std::uint8_t>& dynamic,
+                                             const DynamicObjectConfig& config) {
+    using namespace dynamic_objects_internal;
+    check(config);
+    if (dynamic.size() != objects.object_of.size()) {
+        throw DataError("dynamic objects: " + std::to_string(dynamic.size()) + " flags for " +
+                        std::to_string(objects.object_of.size()) + " points");
+    }
+    DynamicObjectStats stats;
+    if (config.min_dynamic_share <= 0.0f ||
+        std::none_of(dynamic.begin(), dynamic.end(), [](std::uint8_t d) { return d != 0; })) {
+        return stats;
+    }
+    stats.objects = objects.num_objects;
+    std::vector<std::size_t> points(objects.num_objects, 0), moving(objects.num_objects, 0);
+    for (std::size_t i = 0; i < dynamic.size(); ++i) {
+        const std::uint32_t o = objects.object_of[i];
+        if (o == ScanObjects::kNoObject) continue;
+        ++points[o];
+        moving[o] += dynamic[i] ? 1 : 0;
+    }
+    std::vector<std::uint8_t> spread(objects.num_objects, 0);
+    for (std::uint32_t o = 0; o < objects.num_objects; ++o) {
+        spread[o] = moving[o] >= static_cast<std::size_t>(config.min_dynamic_points) &&
+                    static_cast<double>(moving[o]) >=
+                        static_cast<double>(config.min_dynamic_share) * points[o];
+        stats.objects_dynamic += spread[o];
+    }
+    for (std::size_t i = 0; i < dynamic.size(); ++i) {
+        const std::uint32_t o = objects.object_of[i];
+        if (o == ScanObjects::kNoObject || dynamic[i] || !spread[o]) continue;
+        dynamic[i] = 1;
+        ++stats.points_added;
     }
     return stats;
+}
+
+DynamicObjectStats spread_dynamic_to_objects(const std::vector<Eigen::Vector3f>& points_map,
+                                             std::vector<std::uint8_t>& dynamic,
+                                             const DynamicObjectConfig& config) {
+    dynamic_objects_internal::check(config);
+    if (dynamic.size() != points_map.size()) {
+        throw DataError("dynamic objects: " + std::to_string(dynamic.size()) + " flags for " +
+                        std::to_string(points_map.size()) + " points");
+    }
+    if (config.min_dynamic_share <= 0.0f ||
+        std::none_of(dynamic.begin(), dynamic.end(), [](std::uint8_t d) { return d != 0; })) {
+        return {};
+    }
+    return spread_dynamic_to_objects(find_scan_objects(points_map, config), dynamic, config);
 }
 
 }  // namespace shine

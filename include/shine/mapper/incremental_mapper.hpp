@@ -157,6 +157,10 @@ class IncrementalMapper {
     std::deque<std::vector<Eigen::Vector3f>> window_normals_;
     /// The votes window_'s points have received from the scans after them.
     std::deque<std::vector<FreeSpaceVotes>> window_votes_;
+    /// The compact objects of window_'s scans, found when each was the current one (empty with
+    /// the spreading off; dynamic_objects.hpp).
+    std::deque<ScanObjects> window_objects_;
+    ScanObjects current_objects_;  ///< the current scan's, until it joins the window
     /// Range images of the last dynamic.vote_frames scans, with their map-to-sensor transforms.
     std::deque<std::pair<Eigen::Isometry3f, RangeImage>> voters_;
     std::vector<IncrementalFrameStats> frames_;

@@ -42,15 +42,36 @@ struct DynamicObjectConfig {
 
 /// What the propagation did to one scan.
 struct DynamicObjectStats {
-    std::size_t objects = 0;          ///< objects found (with at least min_points points)
+    std::size_t objects = 0;          ///< compact objects (ScanObjects::num_objects)
     std::size_t objects_dynamic = 0;  ///< of them, made dynamic whole
     std::size_t points_added = 0;     ///< points made dynamic that were not before
 };
 
-/// Marks dynamic (dynamic[i] = 1) every point of the objects of `points_map` (one scan, map frame
-/// with z up) whose share of dynamic points reaches config.min_dynamic_share; see the file
-/// comment. Deterministic. Throws DataError if the sizes differ, ConfigError for non-positive
-/// sizes.
+/// The compact objects of one scan (steps 1 and 2, and step 3's size rules): object_of[i] is
+/// point i's object, in [0, num_objects), or kNoObject for ground points and the points of
+/// objects too small (min_points), too wide or too tall to be a mover.
+struct ScanObjects {
+    static constexpr std::uint32_t kNoObject = 0xffffffffu;
+    std::vector<std::uint32_t> object_of;
+    std::uint32_t num_objects = 0;
+};
+
+/// Finds the compact objects of `points_map` (one scan, map frame with z up); see the file
+/// comment. Deterministic. Throws ConfigError for non-positive sizes.
+ScanObjects find_scan_objects(const std::vector<Eigen::Vector3f>& points_map,
+                              const DynamicObjectConfig& config);
+
+/// Step 3's vote: marks dynamic (dynamic[i] = 1) every point of each object whose share of
+/// dynamic points reaches config.min_dynamic_share (and min_dynamic_points). `objects` may be an
+/// earlier segmentation of the same scan with points removed since, in order (incremental mode
+/// keeps each scan's objects while later scans vote on it): the shares count the points left.
+/// Returns at once (all counts 0) when no point is dynamic or the share is 0. Throws DataError if
+/// the sizes differ.
+DynamicObjectStats spread_dynamic_to_objects(const ScanObjects& objects,
+                                             std::vector<std::uint8_t>& dynamic,
+                                             const DynamicObjectConfig& config);
+
+/// find_scan_objects, then spread_dynamic_to_objects (no segmentation when nothing is dynamic).
 DynamicObjectStats spread_dynamic_to_objects(const std::vector<Eigen::Vector3f>& points_map,
                                              std::vector<std::uint8_t>& dynamic,
                                              const DynamicObjectConfig& config);
