@@ -279,4 +279,18 @@ TEST(IncrementalDefaults, FineOutdoorLeavesTakeTheStreetMapsNormalNeighbourhoodU
 }
 
 }  // namespace
+TEST(DynamicObjectDefaults, OffOnTheObjectSceneUnlessSetAndOnElsewhere) {
+    // Dropping compact objects whole is for cars and people: on the object scene the whole scan
+    // is one compact object (dynamic_objects.hpp).
+    EXPECT_EQ(finalized("map: {scene: object}\n").dynamic.objects.min_dynamic_share, 0.0f);
+    EXPECT_EQ(finalized("map: {scene: object}\ndynamic: {object_min_dynamic_share: 0.3}\n")
+                  .dynamic.objects.min_dynamic_share,
+              0.3f);
+    const float outdoor = DynamicObjectConfig{}.min_dynamic_share;
+    EXPECT_GT(outdoor, 0.0f);
+    EXPECT_EQ(finalized("map: {scene: outdoor}\n").dynamic.objects.min_dynamic_share, outdoor);
+    EXPECT_EQ(finalized("map: {scene: indoor}\n").dynamic.objects.min_dynamic_share, outdoor);
+    EXPECT_EQ(finalized("map: {leaf_size_m: 0.1}\n").dynamic.objects.min_dynamic_share, outdoor);
+}
+
 }  // namespace shine
