@@ -264,6 +264,41 @@ TEST(MapFileFormat, MapsWrittenBeforeHalfPrecisionStillLoad) {
     expect_identical_queries(mapper->sdf(), old_map.sdf);
 }
 
+TEST(MapFileFormat, ALeafSizeOpenVdbCannotScaleIsAnErrorNamingTheFile) {
+    // Found by the fuzzer: a leaf size of 1e-300 m is positive and finite, but OpenVDB's linear
+    // transform rejects it; the map must not load, and the error must name the file.
+    const auto mapper = trained(FeaturePrecision::kFloat16, 10);
+    const fs::path dir = tmp_dir("map_tiny_leaf");
+    save_neural_map(dir / "good.vdb", mapper->sdf(), "");
+    load_neural_map(dir / "good.vdb");  // registers ShineVDB's metadata types for the rewrite
+    openvdb::GridPtrVecPtr grids;
+    openvdb::MetaMap::Ptr meta;
+    {
+        openvdb::io::File file((dir / "good.vdb").string());
+        file.open(false);
+        grids = file.getGrids();
+        meta = file.getMetadata();
+        file.close();
+    }
+    for (const double leaf_m : {1e-300, 0.0, 1e9}) {
+        meta->removeMeta("shine_leaf_size_m");
+        meta->insertMeta("shine_leaf_size_m", openvdb::DoubleMetadata(leaf_m));
+        const fs::path bad = dir / "bad.vdb";
+        {
+            openvdb::io::File file(bad.string());
+            file.write(*grids, *meta);
+            file.close();
+        }
+        try {
+            load_neural_map(bad);
+            FAIL() << "loaded a map with a leaf of " << leaf_m << " m";
+        } catch (const IoError& e) {
+            EXPECT_NE(std::string(e.what()).find("bad.vdb"), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find("leaf_size_m"), std::string::npos) << e.what();
+        }
+    }
+}
+
 TEST(HalfFeatures, PrecisionIsAMapKeyOfTheConfiguration) {
     MapperConfig config;
     EXPECT_EQ(config.octree.feature_precision, FeaturePrecision::kFloat16);  // the default

@@ -98,8 +98,10 @@ bool lookup_cell(IndexAccessor& accessor, const LevelIndex& level, double cell_s
 }
 
 FeatureOctreeConfig validated(const FeatureOctreeConfig& config) {
-    if (!(config.leaf_size_m > 0.0) || !std::isfinite(config.leaf_size_m)) {
-        throw ConfigError("leaf_size_m must be a positive number of metres, got " +
+    // OpenVDB's transforms need a scale well away from zero: 0.1 mm to 10 km (the YAML key
+    // map.leaf_size_m allows 1 mm to 100 m).
+    if (!(config.leaf_size_m >= 1e-4 && config.leaf_size_m <= 1e4)) {
+        throw ConfigError("leaf_size_m must be between 0.0001 and 10000 metres, got " +
                           std::to_string(config.leaf_size_m));
     }
     if (config.num_levels < 1 || config.num_levels > 8) {

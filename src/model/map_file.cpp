@@ -275,6 +275,8 @@ LoadedMap load_neural_map(const std::filesystem::path& path) {
                 return NeuralSdf(cfg, decoder_cfg);
             } catch (const ConfigError& e) {
                 throw IoError("'" + path.string() + "': invalid map parameters: " + e.what());
+            } catch (const openvdb::Exception& e) {
+                throw IoError("'" + path.string() + "': invalid map parameters: " + e.what());
             }
         }(),
         required<openvdb::StringMetadata>(*meta, "shine_config", path)};
