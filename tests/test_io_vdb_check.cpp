@@ -399,6 +399,9 @@ TEST(VdbFileCheck, FuzzRegressionsAreRejected) {
     for (const auto& entry : fs::directory_iterator(kSeedDir)) {
         const std::string name = entry.path().filename().string();
         if (name == "map.vdb" || name == "surface.vdb") continue;
+        // Well-formed files whose contents the loader must reject (load_regression_*.vdb: a
+        // leaf size OpenVDB cannot scale; MapFileFormat.ALeafSizeOpenVdbCannotScale...).
+        if (name.rfind("load_", 0) == 0) continue;
         SCOPED_TRACE(name);
         try {
             shine::check_vdb_file(entry.path());

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <random>
 
@@ -101,8 +102,10 @@ FeatureOctreeConfig validated(const FeatureOctreeConfig& config) {
     // OpenVDB's transforms need a scale well away from zero: 0.1 mm to 10 km (the YAML key
     // map.leaf_size_m allows 1 mm to 100 m).
     if (!(config.leaf_size_m >= 1e-4 && config.leaf_size_m <= 1e4)) {
-        throw ConfigError("leaf_size_m must be between 0.0001 and 10000 metres, got " +
-                          std::to_string(config.leaf_size_m));
+        char got[32];
+        std::snprintf(got, sizeof(got), "%g", config.leaf_size_m);
+        throw ConfigError(std::string("leaf_size_m must be between 0.0001 and 10000 metres, got ") +
+                          got);
     }
     if (config.num_levels < 1 || config.num_levels > 8) {
         throw ConfigError("num_levels must be between 1 and 8, got " +
