@@ -235,30 +235,38 @@ TEST(MapFileFormat, LevelsAreStandardInt32GridsOfFeatureRows) {
     EXPECT_NE(text.str().find("int32"), std::string::npos) << text.str();
 }
 
-TEST(MapFileFormat, MapsWrittenBeforeHalfPrecisionStillLoad) {
-    // An older map: float32 features and neither the precision nor the index-shift keys.
-    const auto mapper = trained(FeaturePrecision::kFloat32, 50);
-    const fs::path dir = tmp_dir("map_old_format");
-    save_neural_map(dir / "new.vdb", mapper->sdf(), "");
-    load_neural_map(dir / "new.vdb");  // registers ShineVDB's metadata types for the rewrite
+/// Saves `sdf` to dir/saved.vdb, then writes `to` with the same grids and the file's metadata
+/// changed by `edit` (maps of other versions, or damaged ones).
+template <class Edit>
+void write_map_with_edited_metadata(const NeuralSdf& sdf, const fs::path& dir, const fs::path& to,
+                                    const Edit& edit) {
+    save_neural_map(dir / "saved.vdb", sdf, "");
+    load_neural_map(dir / "saved.vdb");  // registers ShineVDB's metadata types for the rewrite
     openvdb::GridPtrVecPtr grids;
     openvdb::MetaMap::Ptr meta;
     {
-        openvdb::io::File file((dir / "new.vdb").string());
+        openvdb::io::File file((dir / "saved.vdb").string());
         file.open(false);
         grids = file.getGrids();
         meta = file.getMetadata();
         file.close();
     }
-    meta->removeMeta("shine_feature_precision");
-    for (int level = 0; level < 3; ++level) {
-        meta->removeMeta("shine_level_" + std::to_string(level) + "_index_shift");
-    }
-    {
-        openvdb::io::File file((dir / "old.vdb").string());
-        file.write(*grids, *meta);
-        file.close();
-    }
+    edit(*meta);
+    openvdb::io::File file(to.string());
+    file.write(*grids, *meta);
+    file.close();
+}
+
+TEST(MapFileFormat, MapsWrittenBeforeHalfPrecisionStillLoad) {
+    // An older map: float32 features and neither the precision nor the index-shift keys.
+    const auto mapper = trained(FeaturePrecision::kFloat32, 50);
+    const fs::path dir = tmp_dir("map_old_format");
+    write_map_with_edited_metadata(mapper->sdf(), dir, dir / "old.vdb", [](openvdb::MetaMap& meta) {
+        meta.removeMeta("shine_feature_precision");
+        for (int level = 0; level < 3; ++level) {
+            meta.removeMeta("shine_level_" + std::to_string(level) + "_index_shift");
+        }
+    });
     const LoadedMap old_map = load_neural_map(dir / "old.vdb");
     EXPECT_EQ(old_map.sdf.octree.feature_precision(), FeaturePrecision::kFloat32);
     expect_identical_queries(mapper->sdf(), old_map.sdf);
@@ -269,26 +277,12 @@ TEST(MapFileFormat, ALeafSizeOpenVdbCannotScaleIsAnErrorNamingTheFile) {
     // transform rejects it; the map must not load, and the error must name the file.
     const auto mapper = trained(FeaturePrecision::kFloat16, 10);
     const fs::path dir = tmp_dir("map_tiny_leaf");
-    save_neural_map(dir / "good.vdb", mapper->sdf(), "");
-    load_neural_map(dir / "good.vdb");  // registers ShineVDB's metadata types for the rewrite
-    openvdb::GridPtrVecPtr grids;
-    openvdb::MetaMap::Ptr meta;
-    {
-        openvdb::io::File file((dir / "good.vdb").string());
-        file.open(false);
-        grids = file.getGrids();
-        meta = file.getMetadata();
-        file.close();
-    }
     for (const double leaf_m : {1e-300, 0.0, 1e9}) {
-        meta->removeMeta("shine_leaf_size_m");
-        meta->insertMeta("shine_leaf_size_m", openvdb::DoubleMetadata(leaf_m));
         const fs::path bad = dir / "bad.vdb";
-        {
-            openvdb::io::File file(bad.string());
-            file.write(*grids, *meta);
-            file.close();
-        }
+        write_map_with_edited_metadata(mapper->sdf(), dir, bad, [leaf_m](openvdb::MetaMap& meta) {
+            meta.removeMeta("shine_leaf_size_m");
+            meta.insertMeta("shine_leaf_size_m", openvdb::DoubleMetadata(leaf_m));
+        });
         try {
             load_neural_map(bad);
             FAIL() << "loaded a map with a leaf of " << leaf_m << " m";
