@@ -127,14 +127,9 @@ void BatchMapper::finish_scans() {
         const std::size_t first_group = rays_.group_at_or_after(begin);
         // Each point's own votes (its voxel group's), then spread over compact objects.
         std::vector<std::uint8_t> dynamic(points.size(), 0);
-        for (std::size_t i = 0, run = 0; i < points.size(); ++i) {
-            if (voxel_begin.empty()) {
-                run = i;
-            } else {
-                while (run + 1 < voxel_begin.size() && voxel_begin[run + 1] <= i) ++run;
-            }
+        for_each_point_run(points.size(), voxel_begin, [&](std::size_t i, std::size_t run) {
             dynamic[i] = is_dynamic(votes_[first_group + run], config_.dynamic) ? 1 : 0;
-        }
+        });
         const DynamicObjectStats objects =
             spread_dynamic_to_objects(points, dynamic, config_.dynamic.objects);
         stats_.dynamic_objects += objects.objects_dynamic;

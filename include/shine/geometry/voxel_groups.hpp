@@ -12,6 +12,22 @@
 
 namespace shine {
 
+/// Calls f(i, run) for the points i = 0 .. count - 1 in order, `run` being point i's run: its
+/// index in `voxel_begin`, or i when `voxel_begin` is empty (every point a run of its own).
+template <class F>
+void for_each_point_run(std::size_t count, const std::vector<std::uint32_t>& voxel_begin,
+                        const F& f) {
+    std::size_t run = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+        if (voxel_begin.empty()) {
+            run = i;
+        } else {
+            while (run + 1 < voxel_begin.size() && voxel_begin[run + 1] <= i) ++run;
+        }
+        f(i, run);
+    }
+}
+
 /// Keeps the points for which keep(i, run) is true, in order (`run` is point i's run: its index
 /// in `voxel_begin`, or i when ungrouped), and rewrites `voxel_begin` for what is kept: a run
 /// keeps its place, loses its removed points, and disappears when none is left. An empty
@@ -24,21 +40,15 @@ std::size_t filter_voxel_grouped(std::vector<Eigen::Vector3f>& points,
     if (grouped) begins.reserve(voxel_begin.size());
     constexpr std::size_t kNoRun = std::numeric_limits<std::size_t>::max();
     std::size_t kept = 0;
-    std::size_t run = 0;               // the run of point i
     std::size_t last_opened = kNoRun;  // the last run that has a kept point
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        if (grouped) {
-            while (run + 1 < voxel_begin.size() && voxel_begin[run + 1] <= i) ++run;
-        } else {
-            run = i;
-        }
-        if (!keep(i, run)) continue;
+    for_each_point_run(points.size(), voxel_begin, [&](std::size_t i, std::size_t run) {
+        if (!keep(i, run)) return;
         if (grouped && run != last_opened) {
             begins.push_back(static_cast<std::uint32_t>(kept));
             last_opened = run;
         }
         points[kept++] = points[i];
-    }
+    });
     const std::size_t removed = points.size() - kept;
     points.resize(kept);
     if (grouped) voxel_begin = std::move(begins);
