@@ -145,14 +145,22 @@ NormalEquationsOf<N> build_equations(const std::vector<Eigen::Vector3f>& points_
     const std::size_t n = points_sensor.size();
     NormalEquationsOf<N> total;
     if (n == 0) return total;
-    // The points where the solver sees them: deskewed along the sweep's twist when N = 12.
-    std::vector<Eigen::Vector3d> points_ref(n);
-    tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
-        const Eigen::Vector3d p = points_sensor[i].cast<double>();
-        points_ref[i] = N == 12 ? se3_exp(double(sweep->fractions[i]) * sweep_twist) * p : p;
-    });
+    // The points where the solver sees them: as given (N = 6), or deskewed along the sweep's
+    // twist (N = 12, computed once per call).
+    std::vector<Eigen::Vector3d> deskewed;
+    if constexpr (N == 12) {
+        deskewed.resize(n);
+        tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+            deskewed[i] = se3_exp(double(sweep->fractions[i]) * sweep_twist) *
+                          points_sensor[i].cast<double>();
+        });
+    }
+    const auto point_ref = [&](std::size_t i) -> Eigen::Vector3d {
+        if constexpr (N == 12) return deskewed[i];
+        return points_sensor[i].cast<double>();
+    };
     std::vector<Eigen::Vector3d> points_world(n);
-    for (std::size_t i = 0; i < n; ++i) points_world[i] = T_world_sensor * points_ref[i];
+    for (std::size_t i = 0; i < n; ++i) points_world[i] = T_world_sensor * point_ref(i);
     std::vector<double> r;
     std::vector<Eigen::Vector3d> g;
     std::vector<std::uint8_t> valid;
@@ -169,7 +177,7 @@ NormalEquationsOf<N> build_equations(const std::vector<Eigen::Vector3f>& points_
         const std::size_t end = std::min(n, (c + 1) * kChunkPoints);
         for (std::size_t i = c * kChunkPoints; i < end; ++i) {
             if (!valid[i] || !std::isfinite(r[i]) || !g[i].allFinite()) continue;
-            const Eigen::Vector3d& q = points_ref[i];
+            const Eigen::Vector3d q = point_ref(i);
             Eigen::Matrix<double, 1, N> J;
             J.template head<6>() = point_residual_jacobian(q, R, g[i]);
             if constexpr (N == 12) {
