@@ -178,6 +178,14 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
                            {"threads_used", static_cast<int>(tbb::global_control::active_value(
                                                 tbb::global_control::max_allowed_parallelism))},
                            {"state_bytes", mapper.state_bytes()},
+                           {"consolidation",
+                            {{"steps", mapper.consolidation().steps},
+                             {"scans", mapper.consolidation().scans},
+                             {"rays", mapper.consolidation().rays},
+                             {"surface_band_m", mapper.consolidation().surface_band_m},
+                             {"learning_rate", inc.consolidation_learning_rate},
+                             {"seconds", mapper.consolidation().seconds},
+                             {"bce", mapper.consolidation().bce}}},
                            {"frames", frames},
                            {"progress_meshes", meshes}};
 }
@@ -434,7 +442,11 @@ int run_map(const MapOptions& given_options) {
         if (incremental) {
             incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
         } else if (config.odometry.estimate_poses) {
-            odometry_run = map_sequence_incremental(config, sequence, out / "odometry", "odometry");
+            // Only its poses are used: its map is not consolidated.
+            MapperConfig odometry_config = config;
+            odometry_config.incremental.consolidation_steps = 0;
+            odometry_run =
+                map_sequence_incremental(odometry_config, sequence, out / "odometry", "odometry");
             const std::vector<Eigen::Isometry3d>& poses = odometry_run->odometry->poses();
             write_kitti_poses(out / "poses.txt", poses);
             batch_map = map_sequence(config, sequence.with_poses(poses), out, {}, &control);
@@ -521,6 +533,11 @@ int run_map(const MapOptions& given_options) {
         std::printf("incremental: median %.3f s/frame with %d threads\n",
                     json["incremental"]["median_seconds_per_frame"].get<double>(),
                     json["incremental"]["threads_used"].get<int>());
+        const ConsolidationStats& c = incremental_map->mapper->consolidation();
+        if (c.steps > 0) {
+            std::printf("consolidation: %d steps over the last %zu scans in %.1f s\n", c.steps,
+                        c.scans, c.seconds);
+        }
     }
     if (odometry_map) {
         const nlohmann::json& o = json["odometry"];

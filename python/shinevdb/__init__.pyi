@@ -36,6 +36,10 @@ class NeuralMap:
         self, points: FloatArray, pose: FloatArray, times: Optional[FloatArray] = None
     ) -> None:
         """Incremental mode: one scan ((N, 3) sensor frame, 4x4 T_world_sensor), trained at once."""
+    def consolidate(
+        self, steps: Optional[int] = None, progress: bool = True
+    ) -> Dict[str, Any]:
+        """Incremental mode: trains the kept scans together, as `shine map` does at the end."""
     def add_scan(self, points: FloatArray, pose: FloatArray) -> None:
         """Batch mode: adds a scan ((N, 3) sensor frame, 4x4 T_world_sensor); train() learns."""
     def train(self, steps: Optional[int] = None, progress: bool = True) -> bool:

@@ -26,6 +26,7 @@
 #include "shine/bake/level_set_file.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/core/progress.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
@@ -173,6 +174,48 @@ class NeuralMap {
         return batch_->iterations_done() >= total;
     }
 
+    py::dict consolidate(const py::object& steps, bool progress) {
+        if (mode_ != Mode::kIncremental || !incremental_) {
+            throw std::runtime_error(
+                mode_ == Mode::kEmpty
+                    ? "consolidate() needs scans: call integrate() first"
+                    : std::string("consolidate() is for incremental mode, this map is ") +
+                          mode_name(mode_));
+        }
+        int n = incremental_->config().incremental.consolidation_steps;  // leaf defaults applied
+        if (!steps.is_none()) {
+            const long long wanted = steps.cast<long long>();
+            if (wanted < 0 || wanted > 100000000) {
+                throw py::value_error(
+                    "steps must be 0..100000000 or None (the configuration's "
+                    "incremental.consolidation_steps)");
+            }
+            n = static_cast<int>(wanted);
+        }
+        {
+            py::gil_scoped_release release;
+            const auto limit = limit_threads(config_.threads);
+            Progress line("consolidate", static_cast<std::size_t>(n), progress);
+            incremental_->consolidate(
+                n, [&](int done, int) { line.update(static_cast<std::size_t>(done)); });
+            line.finish();
+        }
+        check_signals();
+        return consolidation_dict();
+    }
+
+    py::dict consolidation_dict() const {
+        const ConsolidationStats& c = incremental_->consolidation();
+        py::dict out;
+        out["steps"] = c.steps;
+        out["scans"] = c.scans;
+        out["rays"] = c.rays;
+        out["surface_band_m"] = c.surface_band_m;
+        out["seconds"] = c.seconds;
+        out["bce"] = c.bce;
+        return out;
+    }
+
     py::tuple sdf_values(const py::handle& points) const {
         const std::vector<Eigen::Vector3d> points_world = points3d(points, "points");
         const NeuralSdf& sdf = require_sdf("sdf()");
@@ -314,6 +357,7 @@ class NeuralMap {
             inc["median_seconds_per_frame"] = incremental_->median_frame_seconds();
             inc["state_bytes"] = incremental_->state_bytes();
             inc["iterations_per_frame"] = config_.incremental.iterations_per_frame;
+            inc["consolidation"] = consolidation_dict();
             out["incremental"] = inc;
         }
         if (const NeuralSdf* sdf = current_sdf()) {
@@ -431,7 +475,7 @@ Build it in one of the two modes of ``shine map``:
 * batch: ``add_scan(points, pose)`` for every scan, then ``train()``; gives the CLI's map bit
   for bit for the same scans, configuration, seed and thread count;
 * incremental: ``integrate(points, pose)`` per scan, each trained at once (pretrained, frozen
-  decoder; ``shine map --mode incremental``).
+  decoder), then ``consolidate()``; gives ``shine map --mode incremental``'s map bit for bit.
 
 Points are sensor-frame (N, 3) float32/float64 arrays, poses 4x4 (or 3x4) T_world_sensor.
 )doc")
@@ -456,6 +500,19 @@ Args:
     points: (N, 3) float32/float64 points in the sensor frame.
     pose: (4, 4) or (3, 4) T_world_sensor.
     times: optional (N,) per-point times; checked, not used yet (no deskewing).
+)doc")
+        .def("consolidate", &NeuralMap::consolidate, py::arg("steps") = py::none(),
+             py::arg("progress") = true, R"doc(
+Incremental mode, when the scans are in: trains the kept scans (the last
+``incremental.replay_frames``) together before the map is baked or saved, as ``shine map --mode
+incremental`` does at the end of a sequence. It settles what each scan's few steps left behind
+(on the real walk 84.9 -> 88.5 % of held-out rays within 10 cm). integrate() may follow.
+
+Args:
+    steps: None: the configuration's ``incremental.consolidation_steps`` (1000).
+    progress: print a progress line on stderr.
+Returns:
+    A dict: steps, scans, rays, surface_band_m, seconds, bce (the last step's).
 )doc")
         .def("add_scan", &NeuralMap::add_scan, py::arg("points"), py::arg("pose"),
              "Batch mode: preprocesses a scan and grows the map around it; train() learns from "

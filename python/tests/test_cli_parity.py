@@ -39,5 +39,6 @@ def test_incremental_parity(shine_cli, small_sequence, scans, tmp_path):
     nmap = shinevdb.NeuralMap(config={"run": FAST_CONFIG["run"]}, threads=THREADS)
     for points, pose, _ in shinevdb.read_sequence(small_sequence):
         nmap.integrate(points, pose)
+    nmap.consolidate(progress=False)  # what the CLI does at the end of the sequence
     nmap.write_products(tmp_path / "py")
     assert_same_products(tmp_path / "cli", tmp_path / "py", scans)

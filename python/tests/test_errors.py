@@ -79,6 +79,15 @@ def test_empty_map_and_mode_errors():
         nmap.extract_triangle_mesh()
     with pytest.raises(RuntimeError, match="needs scans"):
         nmap.train()
+    with pytest.raises(RuntimeError, match="consolidate\\(\\) needs scans"):
+        nmap.consolidate()
+    nmap.integrate(POINTS, POSE)
+    with pytest.raises(ValueError, match="steps must be"):
+        nmap.consolidate(steps=-1)
+    batch = shinevdb.NeuralMap()
+    batch.add_scan(POINTS, POSE)
+    with pytest.raises(RuntimeError, match="consolidate\\(\\) is for incremental mode"):
+        batch.consolidate()
     with pytest.raises(ValueError, match="voxel_size_m must be a positive"):
         nmap.extract_triangle_mesh(voxel_size_m=0.0)
 

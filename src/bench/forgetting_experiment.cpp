@@ -220,6 +220,11 @@ ForgettingReport run_forgetting_experiment(const ForgettingConfig& config_in,
         run.regularization_weight = weight;
         MapperConfig mapper_config = config.mapper;
         mapper_config.incremental.importance.regularization_weight = weight;
+        // The experiment measures what scan-by-scan training forgets: no consolidation at the
+        // end unless asked for (it trains the kept scans again).
+        if (!mapper_config.is_set("incremental.consolidation_steps")) {
+            mapper_config.incremental.consolidation_steps = 0;
+        }
         const auto start = std::chrono::steady_clock::now();
         IncrementalSequenceMap mapped =
             map_sequence_incremental(mapper_config, sequence, out_dir / run.name, run.name);

@@ -13,6 +13,7 @@
 #include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/trainer.hpp"
+#include "shine/optim/cosine_decay.hpp"
 #include "shine/sampling/surface_normals.hpp"
 
 namespace shine {
@@ -183,10 +184,7 @@ bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
         const int it = iterations_done_;
         // Cosine decay from lr to final_learning_rate_ratio * lr: large steps place the surface,
         // small ones refine it.
-        const double progress = iterations > 1 ? static_cast<double>(it) / (iterations - 1) : 1.0;
-        const double ratio =
-            config_.final_learning_rate_ratio +
-            (1.0 - config_.final_learning_rate_ratio) * 0.5 * (1.0 + std::cos(M_PI * progress));
+        const double ratio = cosine_decay_ratio(it, iterations, config_.final_learning_rate_ratio);
         trainer.set_feature_learning_rate(static_cast<float>(lr0 * ratio));
         trainer.set_decoder_learning_rate(static_cast<float>(dlr0 * ratio));
         const TrainStepStats last =

@@ -18,6 +18,7 @@
 #include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/trainer.hpp"
+#include "shine/optim/cosine_decay.hpp"
 #include "shine/model/decoder_file.hpp"
 #include "shine/model/map_file.hpp"
 #include "shine/sampling/ray_set.hpp"
@@ -99,6 +100,18 @@ void apply_incremental_defaults(MapperConfig& config) {
         config.incremental.normal_neighbors == defaults.normal_neighbors) {
         config.incremental.normal_neighbors = 24;
     }
+    // The consolidation of a map with about four times the rows: twice the steps, half the
+    // learning rate (real walk at 0.1 m: 88.46 / 87.81 -> 88.69 / 88.01 % of held-out rays
+    // within 10 cm, every 3rd / 2nd scan held out; docs/incremental.md).
+    if (!config.is_set("incremental.consolidation_steps") &&
+        config.incremental.consolidation_steps == defaults.consolidation_steps) {
+        config.incremental.consolidation_steps = 2 * defaults.consolidation_steps;
+    }
+    if (!config.is_set("incremental.consolidation_learning_rate") &&
+        config.incremental.consolidation_learning_rate == defaults.consolidation_learning_rate) {
+        config.incremental.consolidation_learning_rate =
+            0.5f * defaults.consolidation_learning_rate;
+    }
 }
 
 IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(config) {
@@ -127,6 +140,14 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     // The paper keeps a pretrained decoder fixed in incremental mode: a decoder that moved with
     // every scan would change the SDF of every earlier region at once.
     if (inc.decoder_weights != "none") config_.trainer.train_decoder = false;
+    if (inc.consolidation_steps < 0) {
+        throw ConfigError("incremental.consolidation_steps must be >= 0, got " +
+                          std::to_string(inc.consolidation_steps));
+    }
+    if (!(inc.consolidation_learning_rate > 0.0f)) {
+        throw ConfigError("incremental.consolidation_learning_rate must be positive");
+    }
+    consolidation_band_m_ = config_.sampling.surface_band_m;
     config_.sampling.surface_band_m = inc.surface_band_m;
     config_.trainer.feature_adam.learning_rate = inc.learning_rate;
     config_.trainer.batch_size = inc.batch_size;
@@ -285,8 +306,11 @@ std::size_t IncrementalMapper::window_rays_with_normals(RaySet& rays,
                                       normals.end());
     }
     frame.normals_seconds = seconds_since(start);
+    return replayed_rays(rays);
+}
 
-    // The training rays: the last replay_frames scans, the current one last, each with its normals.
+std::size_t IncrementalMapper::replayed_rays(RaySet& rays) const {
+    const std::size_t n = window_.size();
     const std::size_t replayed =
         std::min<std::size_t>(n, static_cast<std::size_t>(config_.incremental.replay_frames));
     for (std::size_t w = n - replayed; w < n; ++w) {
@@ -319,6 +343,50 @@ void IncrementalMapper::replay_scan(const Scan& scan) {
     frames_.push_back(frame);  // compared with the stored frames by load_state()
 }
 
+const ConsolidationStats& IncrementalMapper::consolidate(
+    int steps, const std::function<void(int, int)>& progress) {
+    require_training_state("consolidate");
+    if (steps < 0) {
+        throw ConfigError("consolidation steps must be >= 0, got " + std::to_string(steps));
+    }
+    const auto start = std::chrono::steady_clock::now();
+    consolidation_ = ConsolidationStats{};
+    if (steps == 0 || window_.empty()) return consolidation_;
+    RaySet rays;
+    replayed_rays(rays);
+    if (rays.num_rays() == 0) return consolidation_;
+    consolidation_.scans = std::min<std::size_t>(window_.size(), config_.incremental.replay_frames);
+    consolidation_.rays = rays.num_rays();
+    consolidation_.surface_band_m = consolidation_band_m_;
+
+    // A fresh optimiser: Adam's moments and step counts from the scans' short runs at their
+    // higher learning rate are dropped (every row's state reads as zero again; the next scan
+    // takes new anchors). On the streets this scores 0.1-0.2 points above carrying them on.
+    trainer_->begin_scan();
+    trainer_->release_inactive_state(1);
+    trainer_->set_surface_band_m(consolidation_band_m_);
+    const float lr0 = config_.incremental.consolidation_learning_rate;
+    const double final_ratio = config_.final_learning_rate_ratio;
+    TrainStepStats last;
+    for (int it = 0; it < steps; ++it) {
+        const double ratio = cosine_decay_ratio(it, steps, final_ratio);
+        trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
+        // No regulariser and no focus: every kept scan weighs the same, as in batch mode.
+        last = trainer_->step(rays, 0, rays.num_rays(), iteration_++);
+        if (progress) progress(it + 1, steps);
+    }
+    trainer_->set_surface_band_m(config_.sampling.surface_band_m);
+    trainer_->set_feature_learning_rate(config_.trainer.feature_adam.learning_rate);
+    consolidation_.steps = steps;
+    consolidation_.bce = last.bce;
+    consolidation_.seconds = seconds_since(start);
+    stats_.iterations += static_cast<std::size_t>(steps);
+    stats_.final_bce = last.bce;
+    stats_.final_eikonal = last.eikonal;
+    stats_.train_seconds += consolidation_.seconds;
+    return consolidation_;
+}
+
 const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     const auto frame_start = std::chrono::steady_clock::now();
     IncrementalFrameStats frame;
@@ -342,10 +410,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
         // as batch mode over its whole run), so that the anchors theta* are converged values.
         const double final_ratio = config_.final_learning_rate_ratio;
         for (int it = 0; it < iterations; ++it) {
-            const double progress =
-                iterations > 1 ? static_cast<double>(it) / (iterations - 1) : 1.0;
-            const double ratio =
-                final_ratio + (1.0 - final_ratio) * 0.5 * (1.0 + std::cos(M_PI * progress));
+            const double ratio = cosine_decay_ratio(it, iterations, final_ratio);
             trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
             last = trainer_->step(rays, 0, ray_end, iteration_++, regularizer, focus);
         }

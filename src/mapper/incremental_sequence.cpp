@@ -286,12 +286,28 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
             write_tum_poses(out_dir / "poses_tum.txt", stamped);
         }
     }
+    const int consolidation_steps = mapper.config().incremental.consolidation_steps;
+    if (consolidation_steps > 0 && sequence.size() > 0) {
+        // The kept scans trained together before the bake (IncrementalConfig). Like the bake, it
+        // runs to its end once started: a stop request is honoured before it, after the last
+        // frame's checkpoint.
+        Progress progress(progress_tag.empty() ? "consolidate" : "consolidate " + progress_tag,
+                          static_cast<std::size_t>(consolidation_steps));
+        const ConsolidationStats& done = mapper.consolidate(
+            consolidation_steps,
+            [&](int step, int) { progress.update(static_cast<std::size_t>(step)); });
+        char detail[96];
+        std::snprintf(detail, sizeof(detail), "%zu scans, %.2f s, bce %.4f", done.scans,
+                      done.seconds, done.bce);
+        progress.finish(detail);
+    }
     // The map is final: its training state's memory goes to the products.
     mapper.release_training_state();
     result.products = write_map_products(mapper.sdf(), config, out_dir);
     result.profile.threads = static_cast<int>(
         tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
     result.profile.run = product_stages(result.products);
+    result.profile.run[Stage::kTrain] += mapper.consolidation().seconds;
     if (mesh_every > 0 && sequence.size() > 0) {
         // The final mesh is the last progress mesh too, so the series ends with the whole run.
         const auto t0 = std::chrono::steady_clock::now();
