@@ -18,9 +18,9 @@
 #include "shine/mapper/map_budget.hpp"
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/trainer.hpp"
-#include "shine/optim/cosine_decay.hpp"
 #include "shine/model/decoder_file.hpp"
 #include "shine/model/map_file.hpp"
+#include "shine/optim/cosine_decay.hpp"
 #include "shine/sampling/ray_set.hpp"
 #include "shine/sampling/surface_normals.hpp"
 
@@ -85,9 +85,10 @@ Decoder load_incremental_decoder(const MapperConfig& config_in) {
 void apply_incremental_defaults(MapperConfig& config) {
     if (!config.fine_outdoor_leaf()) return;
     const IncrementalConfig defaults;
-    if (!config.is_set("incremental.iterations_per_frame") &&
-        config.incremental.iterations_per_frame == defaults.iterations_per_frame) {
-        config.incremental.iterations_per_frame = 15;
+    IncrementalConfig& inc = config.incremental;
+    if (config.holds_default("incremental.iterations_per_frame", inc.iterations_per_frame,
+                             defaults.iterations_per_frame)) {
+        inc.iterations_per_frame = 15;
     }
     // Normals over the 0.2 m map's neighbourhood: its radius (the leaf-following default halves
     // it at 0.1 m) and about as many of the denser points.
@@ -96,21 +97,21 @@ void apply_incremental_defaults(MapperConfig& config) {
         config.normals.max_radius_m < street_radius_m) {
         config.normals.max_radius_m = static_cast<float>(street_radius_m);
     }
-    if (!config.is_set("incremental.normal_neighbors") &&
-        config.incremental.normal_neighbors == defaults.normal_neighbors) {
-        config.incremental.normal_neighbors = 24;
+    if (config.holds_default("incremental.normal_neighbors", inc.normal_neighbors,
+                             defaults.normal_neighbors)) {
+        inc.normal_neighbors = 24;
     }
     // The consolidation of a map with about four times the rows: twice the steps, half the
     // learning rate (real walk at 0.1 m: 88.46 / 87.81 -> 88.69 / 88.01 % of held-out rays
     // within 10 cm, every 3rd / 2nd scan held out; docs/incremental.md).
-    if (!config.is_set("incremental.consolidation_steps") &&
-        config.incremental.consolidation_steps == defaults.consolidation_steps) {
-        config.incremental.consolidation_steps = 2 * defaults.consolidation_steps;
+    if (config.holds_default("incremental.consolidation_steps", inc.consolidation_steps,
+                             defaults.consolidation_steps)) {
+        inc.consolidation_steps = 2 * defaults.consolidation_steps;
     }
-    if (!config.is_set("incremental.consolidation_learning_rate") &&
-        config.incremental.consolidation_learning_rate == defaults.consolidation_learning_rate) {
-        config.incremental.consolidation_learning_rate =
-            0.5f * defaults.consolidation_learning_rate;
+    if (config.holds_default("incremental.consolidation_learning_rate",
+                             inc.consolidation_learning_rate,
+                             defaults.consolidation_learning_rate)) {
+        inc.consolidation_learning_rate = 0.5f * defaults.consolidation_learning_rate;
     }
 }
 

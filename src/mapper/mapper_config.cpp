@@ -342,20 +342,20 @@ namespace {
 void apply_scale_free_defaults(MapperConfig& c) {
     const MapperConfig outdoor;
     const SceneDefaults scene = scene_defaults(c.resolved_scene());
-    if (c.scene != "auto" && !c.is_set("map.leaf_size_m") &&
-        c.octree.leaf_size_m == outdoor.octree.leaf_size_m) {
+    if (c.scene != "auto" &&
+        c.holds_default("map.leaf_size_m", c.octree.leaf_size_m, outdoor.octree.leaf_size_m)) {
         c.octree.leaf_size_m = scene.leaf_size_m;
     }
     const auto from_scene = [&c](double& field, double outdoor_value, double scene_value,
                                  const char* key) {
-        if (!c.is_set(key) && field == outdoor_value) field = scene_value;
+        if (c.holds_default(key, field, outdoor_value)) field = scene_value;
     };
     from_scene(c.preprocess.min_range_m, outdoor.preprocess.min_range_m, scene.min_range_m,
                "preprocess.min_range_m");
     from_scene(c.preprocess.max_range_m, outdoor.preprocess.max_range_m, scene.max_range_m,
                "preprocess.max_range_m");
-    if (!c.is_set("sampling.surface_band_m") &&
-        c.sampling.surface_band_m == outdoor.sampling.surface_band_m) {
+    if (c.holds_default("sampling.surface_band_m", c.sampling.surface_band_m,
+                        outdoor.sampling.surface_band_m)) {
         // At least half a leaf, so that coarse maps (bench's 0.5 and 1 m leaves) keep samples on
         // both sides of every cell's surface.
         c.sampling.surface_band_m =
@@ -363,7 +363,7 @@ void apply_scale_free_defaults(MapperConfig& c) {
     }
     // A hit is a return within the data's accuracy of the point: twice the surface band (0.2 m
     // outdoors, 9 mm on the object scene).
-    if (!c.is_set("dynamic.margin_m") && c.dynamic.margin_m == outdoor.dynamic.margin_m) {
+    if (c.holds_default("dynamic.margin_m", c.dynamic.margin_m, outdoor.dynamic.margin_m)) {
         c.dynamic.margin_m = 2.0f * c.sampling.surface_band_m;
     }
     // Moving objects are cars and people: on the object scene the whole scan is one compact
@@ -376,8 +376,8 @@ void apply_scale_free_defaults(MapperConfig& c) {
     // the leaf, so the coarsest cell stays 0.8 m (4 levels at 0.1 m). Measured on real scans
     // and the streets at 0.1 m, in both modes (docs/heldout.md); not measured indoors or on
     // objects, whose leaves follow their own size alone.
-    if (c.resolved_scene() == ScenePreset::kOutdoor && !c.is_set("map.num_levels") &&
-        c.octree.num_levels == outdoor.octree.num_levels &&
+    if (c.resolved_scene() == ScenePreset::kOutdoor &&
+        c.holds_default("map.num_levels", c.octree.num_levels, outdoor.octree.num_levels) &&
         c.octree.leaf_size_m < outdoor.octree.leaf_size_m) {
         const auto finer_levels = static_cast<int>(
             std::lround(std::log2(outdoor.octree.leaf_size_m / c.octree.leaf_size_m)));
@@ -387,7 +387,7 @@ void apply_scale_free_defaults(MapperConfig& c) {
     const double scale = c.octree.leaf_size_m / outdoor.octree.leaf_size_m;
     const auto follow_leaf = [&c, scale](auto& field, auto outdoor_value, const char* key) {
         using T = std::decay_t<decltype(field)>;
-        if (!c.is_set(key) && field == outdoor_value) {
+        if (c.holds_default(key, field, static_cast<T>(outdoor_value))) {
             field = static_cast<T>(static_cast<double>(outdoor_value) * scale);
         }
     };

@@ -107,6 +107,12 @@ struct MapperConfig {
     void mark_set(const std::string& key) { set_keys.insert(key); }
     /// Whether the user set `key`.
     bool is_set(const std::string& key) const { return set_keys.count(key) > 0; }
+    /// Whether `field`, the value of `key`, is a default that another default may replace: the
+    /// user did not set `key` and the field still holds `default_value`.
+    template <class T>
+    bool holds_default(const std::string& key, const T& field, const T& default_value) const {
+        return !is_set(key) && field == default_value;
+    }
     /// The scene `scene` names, or for "auto" the one the leaf size suggests. Throws ConfigError
     /// naming map.scene for an unknown name.
     ScenePreset resolved_scene() const;
