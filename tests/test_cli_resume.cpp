@@ -101,6 +101,25 @@ TEST(Resume, IncrementalRunStoppedAfterAFrameContinuesToTheSameMap) {
     EXPECT_EQ(stats.at("incremental").at("frames").size(), 4u);
 }
 
+TEST(Resume, IncrementalRunStoppedAfterItsLastFrameConsolidatesWhenResumed) {
+    // The stop arrives after the 4th (last) scan, before the consolidation: the checkpoint holds
+    // the online map, and the resumed run consolidates it as the uninterrupted run did.
+    const fs::path reference = reference_run("incremental", "--mode incremental --threads 2");
+    EXPECT_EQ(read_json(reference / "stats.json").at("incremental").at("consolidation").at("steps"),
+              1000);
+    const fs::path out = test_dir() / "out_last";
+    fs::remove_all(out);
+    const CliResult stopped =
+        run(map_args(out, "--mode incremental --threads 2 --interrupt-after 4"));
+    expect_stopped_without_products(stopped, out);
+    EXPECT_NE(stopped.output.find("after frame 4 of 4"), std::string::npos) << stopped.output;
+    const CliResult r = run("map --resume '" + out.string() + "' -q --threads 2");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    expect_same_result(out, reference);
+    EXPECT_EQ(read_json(out / "stats.json").at("incremental").at("consolidation").at("steps"),
+              1000);
+}
+
 TEST(Resume, IncrementalRunReplayingEarlierScansContinuesToTheSameMap) {
     // With incremental.replay_frames 3 the scans before the stop train again after the resume,
     // with the normals they got when they were current.
