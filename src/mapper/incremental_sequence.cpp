@@ -56,6 +56,26 @@ void deskew_for_mapping(Scan& scan, const ScanSequence& sequence, std::size_t i,
     deskew_in_place(scan, motion, interval_s, stats);
 }
 
+/// The prior of scan i's sweep motion for its registration (scans with per-point times): for the
+/// second scan the first sweep's motion (when bootstrap_sweep estimated it), for later scans the
+/// constant-velocity motion of the last two estimated poses over scan i's interval; none for the
+/// first scan, which is registered as measured.
+std::optional<SweepPrior> sweep_prior(const ScanSequence& sequence, std::size_t i,
+                                      const ScanOdometry& odometry, double scan_period_s) {
+    if (i == 0 || (i == 1 && !odometry.records()[0].sweep_estimated)) return std::nullopt;
+    SweepPrior sweep;
+    sweep.interval_s = scan_interval_s(sequence, i - 1, i, scan_period_s);
+    if (i == 1) {
+        sweep.T_expected = odometry.sweep_motion(0);
+        return sweep;
+    }
+    const std::vector<Eigen::Isometry3d>& poses = odometry.poses();
+    const double previous_s = scan_interval_s(sequence, i - 2, i - 1, scan_period_s);
+    sweep.T_expected = interpolate_constant_velocity(poses[i - 2].inverse() * poses[i - 1],
+                                                     sweep.interval_s / previous_s);
+    return sweep;
+}
+
 // Incremental checkpoints: the frames done, the mapper's state, the stage profile so far and the
 // progress meshes written so far.
 void write_incremental_checkpoint(const RunControl& control, const IncrementalSequenceMap& result,
@@ -181,25 +201,10 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
             const OdometryRecord* pose = nullptr;
             if (result.odometry) {
                 // Registered with the last estimated motion (the prediction's velocity) as its
-                // sweep's prior: the second scan with the first sweep's (bootstrap_sweep below),
-                // the first one as measured.
+                // sweep's prior (bootstrap_sweep below gives the first sweep's).
                 std::optional<SweepPrior> sweep;
-                if (deskew && !scan.point_time_s.empty() && i == 1 &&
-                    result.odometry->records()[0].sweep_estimated) {
-                    sweep.emplace();
-                    sweep->interval_s =
-                        scan_interval_s(sequence, 0, 1, config.deskew.scan_period_s);
-                    sweep->T_expected = result.odometry->sweep_motion(0);
-                }
-                if (deskew && !scan.point_time_s.empty() && i >= 2) {
-                    const std::vector<Eigen::Isometry3d>& poses = result.odometry->poses();
-                    const double previous_s =
-                        scan_interval_s(sequence, i - 2, i - 1, config.deskew.scan_period_s);
-                    sweep.emplace();
-                    sweep->interval_s =
-                        scan_interval_s(sequence, i - 1, i, config.deskew.scan_period_s);
-                    sweep->T_expected = interpolate_constant_velocity(
-                        poses[i - 2].inverse() * poses[i - 1], sweep->interval_s / previous_s);
+                if (deskew && !scan.point_time_s.empty()) {
+                    sweep = sweep_prior(sequence, i, *result.odometry, config.deskew.scan_period_s);
                 }
                 pose = &result.odometry->estimate(scan, mapper.sdf(), sweep ? &*sweep : nullptr);
                 if (deskew && i == 0 && sequence.size() > 1 && !scan.point_time_s.empty()) {
