@@ -91,7 +91,11 @@ nlohmann::json describe_run(const MapOptions& opt, const fs::path& data,
             {"topic", opt.topic},
             {"ref", opt.ref_path.empty() ? "" : fs::absolute(opt.ref_path).string()},
             {"no_eval", opt.no_eval},
-            {"config_yaml", config_to_yaml(config)}};
+            {"config_yaml", config_to_yaml(config)},
+            // The keys the user set: the configuration above holds every key, and the defaults
+            // that depend on the mode and the leaf (apply_incremental_defaults,
+            // apply_batch_defaults) must move the same keys again when the run is resumed.
+            {"set_keys", std::vector<std::string>(config.set_keys.begin(), config.set_keys.end())}};
 }
 
 /// The options and configuration of the run whose checkpoint is in `opt.resume_dir`, with this
@@ -130,6 +134,12 @@ MapOptions options_from_checkpoint(const MapOptions& opt, MapperConfig& config) 
         resumed.no_eval = run.at("no_eval").get<bool>();
         parse_config_yaml(run.at("config_yaml").get<std::string>(),
                           "the configuration in '" + file.string() + "'", config);
+        // Reading the stored configuration marks every key as set; the run had set only these
+        // (checkpoints written before they were stored keep every key set).
+        if (run.contains("set_keys")) {
+            const auto keys = run.at("set_keys").get<std::vector<std::string>>();
+            config.set_keys = std::set<std::string>(keys.begin(), keys.end());
+        }
     } catch (const nlohmann::json::exception& e) {
         throw IoError("checkpoint '" + file.string() + "': its run description is damaged (" +
                       e.what() + ")");

@@ -120,6 +120,33 @@ TEST(Resume, IncrementalRunStoppedAfterItsLastFrameConsolidatesWhenResumed) {
               1000);
 }
 
+TEST(Resume, FineLeafRunsResumeWithTheirLeafDefaults) {
+    // At 0.1 m leaves both modes move defaults the user did not set (batch: every point, the
+    // bake in the level-1 cells; incremental: its normals and 2000 consolidation steps). The
+    // checkpoint stores every key's value; a resumed run must still tell the keys the user set
+    // from the rest, or a batch run fails to resume ("the data now gives ... points") and an
+    // incremental one maps with other settings.
+    for (const std::string mode : {"batch", "incremental"}) {
+        SCOPED_TRACE(mode);
+        const std::string extra = "--mode " + mode + " --leaf-size-m 0.1 --threads 2";
+        const fs::path reference = reference_run("fine_" + mode, extra);
+        const fs::path out = test_dir() / ("out_fine_" + mode);
+        fs::remove_all(out);
+        expect_stopped_without_products(
+            run(map_args(out, extra + (mode == "batch" ? " --interrupt-after 103"
+                                                       : " --interrupt-after 2"))),
+            out);
+        const CliResult r = run("map --resume '" + out.string() + "' -q --threads 2");
+        ASSERT_EQ(r.exit_code, 0) << r.output;
+        expect_same_result(out, reference);
+        if (mode == "incremental") {
+            EXPECT_EQ(
+                read_json(out / "stats.json").at("incremental").at("consolidation").at("steps"),
+                2000);
+        }
+    }
+}
+
 TEST(Resume, IncrementalRunReplayingEarlierScansContinuesToTheSameMap) {
     // With incremental.replay_frames 3 the scans before the stop train again after the resume,
     // with the normals they got when they were current.
