@@ -7,6 +7,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <functional>
 #include <random>
 
 #include "shine/core/error.hpp"
@@ -444,6 +445,29 @@ TEST(IncrementalTrainer, FocusedShareDrawsOnlyFromTheFocusedRange) {
     EXPECT_EQ(run(&none, first_rows).second, unfocused.second);
 }
 
+namespace {
+/// Maps three scans 60 m apart (they share no feature row), then runs `then`: returns how many
+/// feature values it changed among the first scan's rows, and among all rows.
+std::pair<std::size_t, std::size_t> values_changed_after_far_scans(
+    IncrementalMapper& mapper, const std::function<void()>& then) {
+    mapper.add_scan(ground_scan_at(0.0));
+    const std::size_t first_values = mapper.sdf().octree.num_corners() *
+                                     static_cast<std::size_t>(mapper.config().octree.feature_dim);
+    mapper.add_scan(ground_scan_at(60.0));
+    mapper.add_scan(ground_scan_at(120.0));
+    const std::vector<float> before = mapper.sdf().octree.features().to_floats();
+    then();
+    const std::vector<float> after = mapper.sdf().octree.features().to_floats();
+    std::pair<std::size_t, std::size_t> changed{0, 0};
+    for (std::size_t i = 0; i < before.size(); ++i) {
+        if (before[i] == after[i]) continue;
+        ++changed.second;
+        if (i < first_values) ++changed.first;
+    }
+    return changed;
+}
+}  // namespace
+
 TEST(IncrementalMapper, ReplayedScansBeyondTheNormalWindowTrainAgain) {
     // Scans 60 m apart: only replay can reach the first scan's feature rows from the later ones.
     // With the normal window at 2 scans and replay_frames 4, the fourth scan still trains the
@@ -458,17 +482,9 @@ TEST(IncrementalMapper, ReplayedScansBeyondTheNormalWindowTrainAgain) {
         config.incremental.replay_frames = replay_frames;
         config.incremental.replay_current_share = 0.25f;
         IncrementalMapper mapper(config);
-        mapper.add_scan(ground_scan_at(0.0));
-        const std::size_t first_rows = mapper.sdf().octree.num_corners();
-        mapper.add_scan(ground_scan_at(60.0));
-        mapper.add_scan(ground_scan_at(120.0));
-        const std::vector<float> before = mapper.sdf().octree.features().to_floats();
-        mapper.add_scan(ground_scan_at(180.0));
-        const std::vector<float> after = mapper.sdf().octree.features().to_floats();
-        std::size_t changed = 0;
-        const std::size_t dim = static_cast<std::size_t>(config.octree.feature_dim);
-        for (std::size_t i = 0; i < first_rows * dim; ++i) changed += before[i] != after[i];
-        return changed;
+        return values_changed_after_far_scans(mapper,
+                                              [&] { mapper.add_scan(ground_scan_at(180.0)); })
+            .first;
     };
     EXPECT_EQ(first_rows_change(1), 0u);
     EXPECT_GT(first_rows_change(4), 0u);
@@ -569,21 +585,7 @@ TEST(IncrementalMapper, ConsolidationReachesEveryKeptScanAndNoneWithZeroSteps) {
         MapperConfig config = consolidation_test_config();
         config.incremental.replay_frames = replay_frames;
         IncrementalMapper mapper(config);
-        mapper.add_scan(ground_scan_at(0.0));
-        const std::size_t first_rows = mapper.sdf().octree.num_corners();
-        mapper.add_scan(ground_scan_at(60.0));
-        mapper.add_scan(ground_scan_at(120.0));
-        const std::vector<float> before = mapper.sdf().octree.features().to_floats();
-        mapper.consolidate(steps);
-        const std::vector<float> after = mapper.sdf().octree.features().to_floats();
-        const std::size_t dim = static_cast<std::size_t>(config.octree.feature_dim);
-        std::pair<std::size_t, std::size_t> changed{0, 0};  // first scan's rows, all rows
-        for (std::size_t i = 0; i < after.size(); ++i) {
-            if (before[i] == after[i]) continue;
-            ++changed.second;
-            if (i < first_rows * dim) ++changed.first;
-        }
-        return changed;
+        return values_changed_after_far_scans(mapper, [&] { mapper.consolidate(steps); });
     };
     const auto all_three = rows_changed(3, 20);
     EXPECT_GT(all_three.first, 0u);

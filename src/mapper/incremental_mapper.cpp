@@ -356,7 +356,7 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     RaySet rays;
     replayed_rays(rays);
     if (rays.num_rays() == 0) return consolidation_;
-    consolidation_.scans = std::min<std::size_t>(window_.size(), config_.incremental.replay_frames);
+    consolidation_.scans = rays.num_scans();
     consolidation_.rays = rays.num_rays();
     consolidation_.surface_band_m = consolidation_band_m_;
 

@@ -119,11 +119,11 @@ class IncrementalMapper {
     void replay_scan(const Scan& scan);
 
     /// The end of a sequence: `steps` (incremental.consolidation_steps in `shine map`) more
-    /// steps over the kept scans
-    /// (the last replay_frames, with the normals each got when current), their rays drawn
-    /// uniformly, with sampling.surface_band_m (batch mode's band), without the regulariser,
-    /// the learning rate decaying from incremental.consolidation_learning_rate (cosine, to
-    /// final_learning_rate_ratio of it). The decoder stays frozen and Adam's moments carry on.
+    /// steps over the kept scans (the last replay_frames, with the normals each got when
+    /// current), their rays drawn uniformly, with sampling.surface_band_m (batch mode's band),
+    /// without the regulariser, the learning rate decaying from
+    /// incremental.consolidation_learning_rate (cosine, to final_learning_rate_ratio of it). The
+    /// decoder stays frozen; the optimiser starts afresh (every row's Adam state is dropped).
     /// `progress(done, total)` is called after each step when given. add_scan() may follow (the
     /// next scan's anchors are the consolidated rows); the frames' statistics are unchanged.
     /// Throws ConfigError for negative `steps`.

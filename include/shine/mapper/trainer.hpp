@@ -128,7 +128,6 @@ class Trainer {
     void set_decoder_learning_rate(float lr) { decoder_adam_.set_learning_rate(lr); }
     /// The half-width of the band the surface samples are drawn from, from the next step on.
     void set_surface_band_m(float band_m) { sampling_.surface_band_m = band_m; }
-    float surface_band_m() const { return sampling_.surface_band_m; }
     std::size_t optimizer_bytes() const {
         return row_state_.memory_bytes() + decoder_adam_.memory_bytes() + local_index_.bytes();
     }
