@@ -3,10 +3,14 @@
 // whose points are dynamic, or to a separate object next to it.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
+#include <limits>
+#include <numeric>
 #include <vector>
 
 #include "shine/core/error.hpp"
+#include "shine/core/random.hpp"
 #include "shine/sampling/dynamic_objects.hpp"
 
 using namespace shine;
@@ -61,7 +65,111 @@ std::size_t count(const std::vector<std::uint8_t>& dynamic, std::size_t begin, s
     return n;
 }
 
+/// find_scan_objects() the slow way, from the file comment's rules: a point's ground is the
+/// lowest point of any ground cell within one cell of its own; the non-ground points' voxels
+/// are joined pairwise wherever they touch (all pairs compared); compact components are numbered
+/// in order of their first point.
+ScanObjects reference_objects(const std::vector<Eigen::Vector3f>& points,
+                              const DynamicObjectConfig& config) {
+    const auto cell = [](float v, float size) {
+        return static_cast<long long>(std::floor(v / size));
+    };
+    const std::size_t n = points.size();
+    ScanObjects result;
+    result.object_of.assign(n, ScanObjects::kNoObject);
+    std::vector<std::size_t> object_points;  // indices of the non-ground points
+    for (std::size_t i = 0; i < n; ++i) {
+        float ground = std::numeric_limits<float>::infinity();
+        for (const Eigen::Vector3f& q : points) {
+            if (std::abs(cell(q.x(), config.ground_cell_m) -
+                         cell(points[i].x(), config.ground_cell_m)) <= 1 &&
+                std::abs(cell(q.y(), config.ground_cell_m) -
+                         cell(points[i].y(), config.ground_cell_m)) <= 1) {
+                ground = std::min(ground, q.z());
+            }
+        }
+        if (points[i].z() - ground >= config.min_height_m) object_points.push_back(i);
+    }
+    const std::size_t m = object_points.size();
+    std::vector<std::size_t> root(m);
+    std::iota(root.begin(), root.end(), std::size_t{0});
+    const auto find = [&](std::size_t a) {
+        while (root[a] != a) a = root[a];
+        return a;
+    };
+    for (std::size_t a = 0; a < m; ++a) {
+        for (std::size_t b = a + 1; b < m; ++b) {
+            const Eigen::Vector3f& p = points[object_points[a]];
+            const Eigen::Vector3f& q = points[object_points[b]];
+            bool touch = true;
+            for (int k = 0; k < 3; ++k) {
+                touch =
+                    touch && std::abs(cell(p[k], config.voxel_m) - cell(q[k], config.voxel_m)) <= 1;
+            }
+            if (!touch) continue;
+            const std::size_t ra = find(a), rb = find(b);
+            if (ra != rb) root[std::max(ra, rb)] = std::min(ra, rb);
+        }
+    }
+    std::vector<std::size_t> size(m, 0);
+    std::vector<Eigen::Vector3f> lo(m, Eigen::Vector3f::Constant(1e30f)), hi(m, -lo[0]);
+    for (std::size_t a = 0; a < m; ++a) {
+        const std::size_t r = find(a);
+        ++size[r];
+        lo[r] = lo[r].cwiseMin(points[object_points[a]]);
+        hi[r] = hi[r].cwiseMax(points[object_points[a]]);
+    }
+    std::vector<std::uint32_t> id(m, ScanObjects::kNoObject);
+    std::vector<bool> seen(m, false);
+    for (std::size_t a = 0; a < m; ++a) {
+        const std::size_t r = find(a);
+        if (!seen[r]) {
+            seen[r] = true;
+            const Eigen::Vector3f extent = hi[r] - lo[r];
+            if (size[r] >= static_cast<std::size_t>(config.min_points) &&
+                extent.head<2>().norm() <= config.max_extent_m &&
+                extent.z() <= config.max_height_m) {
+                id[r] = result.num_objects++;
+            }
+        }
+        result.object_of[object_points[a]] = id[r];
+    }
+    return result;
+}
+
 }  // namespace
+
+TEST(DynamicObjects, ObjectsEqualTheAllPairsReference) {
+    // Random clusters of every size over uneven ground: some compact, some too wide or too tall,
+    // some too small, some touching diagonally only.
+    Pcg32 rng(11);
+    DynamicObjectConfig config;
+    for (int trial = 0; trial < 4; ++trial) {
+        std::vector<Eigen::Vector3f> points;
+        for (int i = 0; i < 500; ++i) {
+            points.emplace_back(rng.uniform(-15.0f, 15.0f), rng.uniform(-15.0f, 15.0f),
+                                rng.uniform(-0.3f, 0.3f));
+        }
+        for (int c = 0; c < 25; ++c) {
+            const Eigen::Vector3f centre(rng.uniform(-14.0f, 14.0f), rng.uniform(-14.0f, 14.0f),
+                                         rng.uniform(0.0f, 2.0f));
+            const Eigen::Vector3f half(rng.uniform(0.05f, 6.0f), rng.uniform(0.05f, 2.0f),
+                                       rng.uniform(0.05f, 3.0f));
+            const int count = 1 + static_cast<int>(rng.uniform(0.0f, 60.0f));
+            for (int i = 0; i < count; ++i) {
+                points.push_back(centre + Eigen::Vector3f(rng.uniform(-1.0f, 1.0f),
+                                                          rng.uniform(-1.0f, 1.0f),
+                                                          rng.uniform(-1.0f, 1.0f))
+                                              .cwiseProduct(half));
+            }
+        }
+        const ScanObjects fast = find_scan_objects(points, config);
+        const ScanObjects slow = reference_objects(points, config);
+        ASSERT_EQ(fast.num_objects, slow.num_objects) << "trial " << trial;
+        ASSERT_GT(slow.num_objects, 3u) << "trial " << trial;
+        EXPECT_EQ(fast.object_of, slow.object_of) << "trial " << trial;
+    }
+}
 
 TEST(DynamicObjects, ACarWithAFewDynamicPointsIsDynamicWholeAndTheGroundUnderItIsNot) {
     Scene scene = ground();

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "shine/core/error.hpp"
+#include "shine/core/random.hpp"
 #include "shine/sampling/free_space_votes.hpp"
 #include "shine/sampling/range_image.hpp"
 
@@ -59,6 +60,50 @@ TEST(RangeImage, BinsFollowTheScanDensityAndKeepTheNearestReturn) {
     EXPECT_EQ(image.nearest_around(Eigen::Vector3f(-1.0f, 0.0f, 0.0f), 1).returns, 0);
     EXPECT_EQ(image.nearest_around(Eigen::Vector3f(1.0f, 0.0f, 1.0f), 1).returns, 0);
     EXPECT_TRUE(RangeImage(std::vector<Eigen::Vector3f>{}).empty());
+}
+
+TEST(RangeImage, PreparedWindowGivesTheBinByBinLookup) {
+    // Holes (no return), a box nearer than the wall, the seam at azimuth +-pi, directions above
+    // and below the image and in the rows just outside it, and a tiny scan narrower than the
+    // window: the prepared window must give the same nearest return and count as the bin walk.
+    const auto scan = spin_scan([](const Eigen::Vector3f& d) {
+        if (std::sin(37.0f * d.x()) * std::cos(23.0f * d.z()) > 0.6f) return 0.0f;  // holes
+        return d.x() > 0.5f ? wall_and_box_range(d, 12.0f, 6.0f, 1.0f)
+                            : 8.0f + 3.0f * std::abs(d.y());
+    });
+    const std::vector<Eigen::Vector3f> tiny{
+        {1.0f, 0.0f, 0.0f}, {0.0f, 2.0f, 0.1f}, {-3.0f, 0.1f, -0.2f}};
+    Pcg32 rng(7);
+    int checked_returns[2] = {0, 0};  // lookups without and with returns in their window
+    for (const auto* points : {&scan, &tiny}) {
+        for (const int radius : {0, 1, 2, 5}) {
+            RangeImage image(*points);
+            image.prepare_window(radius);
+            ASSERT_EQ(image.window_radius_bins(), radius);
+            for (int i = 0; i < 20000; ++i) {
+                const float az = (2.0f * rng.uniform() - 1.0f) * kPi;
+                const float el = (2.0f * rng.uniform() - 1.0f) * 25.0f * kPi / 180.0f;
+                const Eigen::Vector3f d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                                        std::sin(el));
+                const RangeLookup fast = image.nearest_around(d, radius);
+                const RangeLookup plain = image.nearest_around_bins(d, radius);
+                ASSERT_EQ(fast.returns, plain.returns) << "radius " << radius << " draw " << i;
+                ASSERT_EQ(fast.min_range_m, plain.min_range_m) << "radius " << radius;
+                ++checked_returns[fast.returns > 0];
+            }
+            // Another radius than the prepared one walks the bins.
+            const Eigen::Vector3f ahead(1.0f, 0.0f, 0.0f);
+            EXPECT_EQ(image.nearest_around(ahead, radius + 1).returns,
+                      image.nearest_around_bins(ahead, radius + 1).returns);
+        }
+    }
+    // Both cases occurred: directions with returns in their window and without.
+    EXPECT_GT(checked_returns[0], 1000);
+    EXPECT_GT(checked_returns[1], 1000);
+    // An impossible radius prepares nothing.
+    RangeImage image(scan);
+    image.prepare_window(-1);
+    EXPECT_EQ(image.window_radius_bins(), -1);
 }
 
 TEST(FreeSpaceVotes, ABoxThatLeftIsSeenThroughAndTheWallIsNot) {

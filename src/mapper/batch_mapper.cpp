@@ -77,6 +77,7 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
         voter.T_sensor_map =
             map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m).inverse().cast<float>();
         voter.image = RangeImage(scan.points_sensor);
+        voter.image.prepare_window(config_.dynamic.window_bins);  // asked for many points
         // Scans more than vote_frames apart vote as far scans (free_space_votes.hpp).
         const auto [points, count, first_group] = leads(index);
         for (const Voter& past : voters_) {

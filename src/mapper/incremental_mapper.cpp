@@ -193,6 +193,7 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
         std::max(config_.incremental.normal_window_frames, config_.incremental.replay_frames));
     while (window_.size() > window_frames) {
         window_.pop_front();
+        ++window_first_serial_;
         window_normals_.pop_front();
         window_votes_.pop_front();
         window_objects_.pop_front();
@@ -206,6 +207,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     const Eigen::Isometry3f T_sensor_map =
         map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m).inverse().cast<float>();
     RangeImage image(scan.points_sensor);
+    image.prepare_window(dynamic.window_bins);  // asked for the points of many scans
     // The scan's own points, voted on by the scans before it.
     std::vector<FreeSpaceVotes> votes(current.points_map.size());
     if (!votes.empty()) {
@@ -281,8 +283,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     return votes;  // the kept points' votes so far; the scans after it add theirs
 }
 
-std::size_t IncrementalMapper::window_rays_with_normals(RaySet& rays,
-                                                        IncrementalFrameStats& frame) {
+void IncrementalMapper::estimate_current_normals(IncrementalFrameStats& frame) {
     const std::size_t n = window_.size();
     // 3. Normals of the current scan, among the endpoints of the last normal_window_frames scans;
     // the replayed scans keep the ones they got when they were current.
@@ -307,29 +308,11 @@ std::size_t IncrementalMapper::window_rays_with_normals(RaySet& rays,
                                       normals.end());
     }
     frame.normals_seconds = seconds_since(start);
-    return replayed_rays(rays);
 }
 
-std::size_t IncrementalMapper::replayed_rays(RaySet& rays) const {
-    const std::size_t n = window_.size();
-    const std::size_t replayed =
-        std::min<std::size_t>(n, static_cast<std::size_t>(config_.incremental.replay_frames));
-    for (std::size_t w = n - replayed; w < n; ++w) {
-        rays.add_scan(window_[w].origin_map, window_[w].points_map);
-    }
-    if (config_.normals.enabled) {
-        std::vector<Eigen::Vector3f> normals(rays.num_rays(), Eigen::Vector3f::Zero());
-        for (std::size_t w = n - replayed; w < n; ++w) {
-            const std::vector<Eigen::Vector3f>& stored = window_normals_[w];
-            // Empty: a scan from before a resume without replay.
-            if (stored.size() != window_[w].points_map.size()) continue;
-            std::copy(stored.begin(), stored.end(),
-                      normals.begin() + static_cast<std::ptrdiff_t>(rays.first_ray(
-                                            static_cast<std::uint32_t>(w - (n - replayed)))));
-        }
-        rays.set_normals(std::move(normals));
-    }
-    return rays.first_ray(static_cast<std::uint32_t>(replayed - 1));
+void IncrementalMapper::sync_replay_rays(std::size_t changed_scans) {
+    replay_.sync(window_, window_normals_, window_first_serial_,
+                 static_cast<std::size_t>(config_.incremental.replay_frames), changed_scans);
 }
 
 void IncrementalMapper::replay_scan(const Scan& scan) {
@@ -338,8 +321,7 @@ void IncrementalMapper::replay_scan(const Scan& scan) {
     if (config_.incremental.replay_frames > 1) {
         // The replayed scans' normals are trained on again by the next scans: estimate them as
         // when the scan was current, so that a resumed run trains exactly as an uninterrupted one.
-        RaySet rays;
-        window_rays_with_normals(rays, frame);
+        estimate_current_normals(frame);
     }
     frames_.push_back(frame);  // compared with the stored frames by load_state()
 }
@@ -353,11 +335,12 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     const auto start = std::chrono::steady_clock::now();
     consolidation_ = ConsolidationStats{};
     if (steps == 0 || window_.empty()) return consolidation_;
-    RaySet rays;
-    replayed_rays(rays);
-    if (rays.num_rays() == 0) return consolidation_;
-    consolidation_.scans = rays.num_scans();
-    consolidation_.rays = rays.num_rays();
+    sync_replay_rays(0);  // after a resume at the end of the sequence: assembled here
+    const RaySet& rays = replay_.rays();
+    const std::size_t ray_begin = replay_.begin_ray();
+    if (rays.num_rays() == ray_begin) return consolidation_;
+    consolidation_.scans = replay_.live_scans();
+    consolidation_.rays = rays.num_rays() - ray_begin;
     consolidation_.surface_band_m = consolidation_band_m_;
 
     // A fresh optimiser: Adam's moments and step counts from the scans' short runs at their
@@ -373,7 +356,7 @@ const ConsolidationStats& IncrementalMapper::consolidate(
         const double ratio = cosine_decay_ratio(it, steps, final_ratio);
         trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
         // No regulariser and no focus: every kept scan weighs the same, as in batch mode.
-        last = trainer_->step(rays, 0, rays.num_rays(), iteration_++);
+        last = trainer_->step(rays, ray_begin, rays.num_rays(), iteration_++);
         if (progress) progress(it + 1, steps);
     }
     trainer_->set_surface_band_m(config_.sampling.surface_band_m);
@@ -393,8 +376,14 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     IncrementalFrameStats frame;
     preprocess_and_allocate(scan, frame);
 
-    RaySet rays;
-    const std::size_t ray_begin = window_rays_with_normals(rays, frame);
+    estimate_current_normals(frame);
+    // The training rays: the last replay_frames scans with their normals, the current scan last.
+    // The scans the dynamic filter just thinned (the last normal_window_frames before the current
+    // one) are taken anew.
+    sync_replay_rays(static_cast<std::size_t>(config_.incremental.normal_window_frames) + 1);
+    const RaySet& rays = replay_.rays();
+    const std::size_t replay_begin = replay_.begin_ray();
+    const std::size_t ray_begin = replay_.last_scan_begin_ray();
     const std::size_t ray_end = rays.num_rays();
     const RayFocus focus{ray_begin, config_.incremental.replay_current_share};
 
@@ -413,7 +402,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
         for (int it = 0; it < iterations; ++it) {
             const double ratio = cosine_decay_ratio(it, iterations, final_ratio);
             trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
-            last = trainer_->step(rays, 0, ray_end, iteration_++, regularizer, focus);
+            last = trainer_->step(rays, replay_begin, ray_end, iteration_++, regularizer, focus);
         }
         frame.bce = last.bce;
         frame.regularization = last.regularization;
@@ -429,7 +418,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
         RowGradientNormSums sums;
         const std::size_t samples = trainer_->accumulate_bce_gradient_norms(
             rays, ray_begin, ray_end, frames_.size(), sums,
-            static_cast<std::size_t>(config_.incremental.importance_ray_stride));
+            static_cast<std::size_t>(config_.incremental.importance_ray_stride), replay_begin);
         // The paper's sum over the scan's samples, divided by their number N: with the mean BCE
         // of a batch as the data loss, lambda_r * Omega is then on the scale of the data
         // gradient whatever the scan's point count (see docs/incremental.md). The anchors need
@@ -485,6 +474,7 @@ void IncrementalMapper::release_training_state() {
     window_votes_ = {};
     window_objects_ = {};
     voters_ = {};
+    replay_ = ReplayRays();
     sdf_->octree.compact_structure();
 #if defined(__GLIBC__)
     malloc_trim(0);  // hand the freed pages back, so that the products find them free
@@ -542,6 +532,7 @@ void IncrementalMapper::load_state(BinaryReader& in) {
     frames_ = std::move(frames);
     stats_ = stats;
     iteration_ = iteration;
+    replay_.clear();  // assembled afresh from the replayed window by the next scan
 }
 
 }  // namespace shine

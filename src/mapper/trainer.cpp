@@ -320,11 +320,17 @@ std::uint64_t Trainer::importance_stream_seed(std::uint64_t pass, std::uint64_t 
 std::size_t Trainer::accumulate_bce_gradient_norms(const RaySet& rays, std::size_t ray_begin,
                                                    std::size_t ray_end, std::uint64_t pass,
                                                    RowGradientNormSums& row_sums,
-                                                   std::size_t ray_stride) {
+                                                   std::size_t ray_stride,
+                                                   std::size_t seed_ray_origin) {
     row_sums.rows.clear();
     row_sums.sums.clear();
     std::size_t valid_samples = 0;
     if (ray_end <= ray_begin) return valid_samples;
+    if (seed_ray_origin > ray_begin) {
+        throw ConfigError("Trainer::accumulate_bce_gradient_norms: the streams' first ray " +
+                          std::to_string(seed_ray_origin) + " is after the first ray " +
+                          std::to_string(ray_begin));
+    }
     for (Partition& partition : partitions_) {
         partition.touched_rows.clear();
         partition.grads.clear();  // here: one sum per touched row
@@ -349,7 +355,7 @@ std::size_t Trainer::accumulate_bce_gradient_norms(const RaySet& rays, std::size
             chunk.samples.resize((hi - lo) * per_ray);
             for (std::size_t i = lo; i < hi; ++i) {
                 const std::size_t ray = ray_begin + i * ray_stride;
-                Pcg32 rng(importance_stream_seed(pass, ray));
+                Pcg32 rng(importance_stream_seed(pass, ray - seed_ray_origin));
                 sample_ray(rays.origin_of_ray(ray), rays.endpoint(ray), rays.normal(ray), sampling_,
                            rng, chunk.samples.data() + (i - lo) * per_ray);
             }

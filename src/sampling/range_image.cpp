@@ -10,6 +10,8 @@ namespace shine {
 namespace {
 constexpr float kTwoPi = 6.28318530717958647692f;
 constexpr float kMinRangeM = 1e-6f;
+/// (2 r + 1)^2 returns must fit the window image's 16-bit counts.
+constexpr int kMaxWindowRadiusBins = 127;
 
 float azimuth_of(const Eigen::Vector3f& d) { return std::atan2(d.y(), d.x()); }
 float elevation_of(const Eigen::Vector3f& d) { return std::atan2(d.z(), std::hypot(d.x(), d.y())); }
@@ -62,6 +64,25 @@ RangeImage::RangeImage(const std::vector<Eigen::Vector3f>& points_sensor) {
 
 RangeLookup RangeImage::nearest_around(const Eigen::Vector3f& direction_sensor,
                                        int radius_bins) const {
+    if (radius_bins != window_radius_ || ranges_.empty()) {
+        return nearest_around_bins(direction_sensor, radius_bins);
+    }
+    RangeLookup result;
+    const float el = (elevation_of(direction_sensor) - elevation_min_rad_) / bin_rad_;
+    if (el < -static_cast<float>(radius_bins) || el >= static_cast<float>(rows_ + radius_bins)) {
+        return result;
+    }
+    const int row = static_cast<int>(std::floor(el)) + radius_bins;  // a row of the window image
+    int col = static_cast<int>((azimuth_of(direction_sensor) + kTwoPi / 2) / bin_rad_) % cols_;
+    if (col < 0) col += cols_;
+    const std::size_t bin = static_cast<std::size_t>(row) * cols_ + col;
+    result.returns = window_returns_[bin];
+    result.min_range_m = window_min_[bin];
+    return result;
+}
+
+RangeLookup RangeImage::nearest_around_bins(const Eigen::Vector3f& direction_sensor,
+                                            int radius_bins) const {
     RangeLookup result;
     if (ranges_.empty()) return result;
     const float el = (elevation_of(direction_sensor) - elevation_min_rad_) / bin_rad_;
@@ -84,6 +105,59 @@ RangeLookup RangeImage::nearest_around(const Eigen::Vector3f& direction_sensor,
     }
     result.min_range_m = nearest;
     return result;
+}
+
+void RangeImage::prepare_window(int radius_bins) {
+    window_radius_ = -1;
+    window_min_.clear();
+    window_returns_.clear();
+    if (ranges_.empty() || radius_bins < 0 || radius_bins > kMaxWindowRadiusBins) return;
+    const int r = radius_bins;
+    const std::size_t cols = static_cast<std::size_t>(cols_);
+    // Along each row first: the nearest return and the count over the columns col - r .. col + r,
+    // wrapping around (a column met twice, in an image narrower than the window, counts twice,
+    // as in nearest_around_bins()).
+    std::vector<float> row_min(ranges_.size(), 0.0f);
+    std::vector<std::uint16_t> row_returns(ranges_.size(), 0);
+    tbb::parallel_for(0, rows_, [&](int row) {
+        const float* line = ranges_.data() + static_cast<std::size_t>(row) * cols;
+        for (int col = 0; col < cols_; ++col) {
+            float nearest = 0.0f;
+            std::uint16_t returns = 0;
+            for (int dc = -r; dc <= r; ++dc) {
+                int c = (col + dc) % cols_;
+                if (c < 0) c += cols_;
+                const float range = line[c];
+                if (range == 0.0f) continue;
+                ++returns;
+                if (nearest == 0.0f || range < nearest) nearest = range;
+            }
+            row_min[static_cast<std::size_t>(row) * cols + col] = nearest;
+            row_returns[static_cast<std::size_t>(row) * cols + col] = returns;
+        }
+    });
+    // Then across the rows of the image within r of each window row.
+    const int window_rows = rows_ + 2 * r;
+    window_min_.assign(static_cast<std::size_t>(window_rows) * cols, 0.0f);
+    window_returns_.assign(window_min_.size(), 0);
+    tbb::parallel_for(0, window_rows, [&](int w) {
+        const int centre = w - r;
+        float* out_min = window_min_.data() + static_cast<std::size_t>(w) * cols;
+        std::uint16_t* out_returns = window_returns_.data() + static_cast<std::size_t>(w) * cols;
+        for (int row = std::max(0, centre - r); row <= std::min(rows_ - 1, centre + r); ++row) {
+            const float* in_min = row_min.data() + static_cast<std::size_t>(row) * cols;
+            const std::uint16_t* in_returns =
+                row_returns.data() + static_cast<std::size_t>(row) * cols;
+            for (std::size_t c = 0; c < cols; ++c) {
+                out_returns[c] = static_cast<std::uint16_t>(out_returns[c] + in_returns[c]);
+                const float range = in_min[c];
+                if (range != 0.0f && (out_min[c] == 0.0f || range < out_min[c])) {
+                    out_min[c] = range;
+                }
+            }
+        }
+    });
+    window_radius_ = r;
 }
 
 }  // namespace shine

@@ -47,6 +47,63 @@ std::uint32_t RaySet::add_scan(const Eigen::Vector3f& origin_map,
     return scan;
 }
 
+std::uint32_t RaySet::add_scan_with_normals(const Eigen::Vector3f& origin_map,
+                                            const std::vector<Eigen::Vector3f>& endpoints_map,
+                                            const std::vector<Eigen::Vector3f>& normals) {
+    if (!normals.empty() && normals.size() != endpoints_map.size()) {
+        throw DataError("ray normals: got " + std::to_string(normals.size()) + " for a scan of " +
+                        std::to_string(endpoints_map.size()) + " rays");
+    }
+    const std::size_t first = endpoints_.size();
+    const std::uint32_t scan = add_scan(origin_map, endpoints_map);
+    if (!normals.empty()) {
+        normals_.resize(first, Eigen::Vector3f::Zero());  // earlier rays without normals: zero
+        normals_.insert(normals_.end(), normals.begin(), normals.end());
+    }
+    return scan;
+}
+
+void RaySet::truncate(std::uint32_t num_scans) {
+    if (num_scans >= origins_.size()) return;
+    const std::size_t end = scan_begin_[num_scans];
+    endpoints_.resize(end);
+    scan_of_ray_.resize(end);
+    if (!normals_.empty()) normals_.resize(end);
+    origins_.resize(num_scans);
+    scan_begin_.resize(std::size_t{num_scans} + 1);
+    if (grouped()) {
+        // The groups of the kept scans, and num_rays() last; no group spans two scans.
+        group_begin_.resize(group_at_or_after(end));
+        group_begin_.push_back(end);
+    }
+}
+
+void RaySet::clear() {
+    truncate(0);
+    group_begin_.clear();
+}
+
+void RaySet::erase_front(std::uint32_t num_scans) {
+    num_scans = static_cast<std::uint32_t>(std::min<std::size_t>(num_scans, origins_.size()));
+    if (num_scans == 0) return;
+    const std::size_t first = scan_begin_[num_scans];
+    const auto drop_front = [](auto& values, std::size_t count) {
+        values.erase(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(count));
+    };
+    if (grouped()) {
+        const std::size_t first_group = group_at_or_after(first);
+        drop_front(group_begin_, first_group);
+        for (std::size_t& b : group_begin_) b -= first;
+    }
+    drop_front(endpoints_, first);
+    drop_front(scan_of_ray_, first);
+    for (std::uint32_t& scan : scan_of_ray_) scan -= num_scans;
+    if (!normals_.empty()) drop_front(normals_, first);
+    drop_front(origins_, num_scans);
+    drop_front(scan_begin_, num_scans);
+    for (std::size_t& b : scan_begin_) b -= first;
+}
+
 void RaySet::set_normals(std::vector<Eigen::Vector3f> normals) {
     if (!normals.empty() && normals.size() != endpoints_.size()) {
         throw DataError("ray normals: got " + std::to_string(normals.size()) + " for " +

@@ -34,6 +34,7 @@
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/replay_rays.hpp"
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/stage_profile.hpp"
 #include "shine/model/decoder.hpp"
@@ -165,14 +166,12 @@ class IncrementalMapper {
     /// returns the votes of `current`'s kept points.
     std::vector<FreeSpaceVotes> drop_dynamic_points(const Scan& scan, ScanInMap& current,
                                                     IncrementalFrameStats& frame);
-    /// Step 3 and the training rays: estimates the current scan's normals among the last
-    /// normal_window_frames scans and stores them for replay; fills `rays` with the last
-    /// replay_frames scans (the current one last), each with its stored normals. Returns the
-    /// current scan's first ray in `rays`.
-    std::size_t window_rays_with_normals(RaySet& rays, IncrementalFrameStats& frame);
-    /// The training rays: the last replay_frames scans of the window (the current one last),
-    /// each with its stored normals. Returns the current scan's first ray in `rays`.
-    std::size_t replayed_rays(RaySet& rays) const;
+    /// Step 3: estimates the current scan's normals among the last normal_window_frames scans
+    /// and stores them for replay; fills frame.rays_with_normal and normals_seconds.
+    void estimate_current_normals(IncrementalFrameStats& frame);
+    /// The training rays (replay_): the last replay_frames scans of the window with their stored
+    /// normals, the current one last; the last `changed_scans` of them taken anew.
+    void sync_replay_rays(std::size_t changed_scans);
     /// Throws Error naming `what` once release_training_state() has run.
     void require_training_state(const char* what) const;
 
@@ -182,6 +181,8 @@ class IncrementalMapper {
     ImportanceWeights importance_;
     /// The last max(normal_window_frames, replay_frames) scans, the current one last.
     std::deque<ScanInMap> window_;
+    std::uint64_t window_first_serial_ = 0;  ///< the scan number of window_.front()
+    ReplayRays replay_;                      ///< the training rays, kept from scan to scan
     /// The endpoint normals of window_'s scans, each estimated when its scan was the current one
     /// (empty with normals disabled).
     std::deque<std::vector<Eigen::Vector3f>> window_normals_;

@@ -113,10 +113,14 @@ class Trainer {
     /// thread count.
     /// With `ray_stride` > 1 only the rays ray_begin, ray_begin + ray_stride, ... are used (a
     /// subsample for the mean over the scan's samples; see IncrementalConfig).
+    /// The streams are numbered from ray `seed_ray_origin` (ray r draws from stream r -
+    /// seed_ray_origin): a set whose first rays are no longer used (ReplayRays' dead prefix)
+    /// gives its rays the samples they had in a set that starts with its live rays.
     std::size_t accumulate_bce_gradient_norms(const RaySet& rays, std::size_t ray_begin,
                                               std::size_t ray_end, std::uint64_t pass,
                                               RowGradientNormSums& row_sums,
-                                              std::size_t ray_stride = 1);
+                                              std::size_t ray_stride = 1,
+                                              std::size_t seed_ray_origin = 0);
     /// Seed of the random stream the importance pass samples ray `ray` of pass `pass` with.
     std::uint64_t importance_stream_seed(std::uint64_t pass, std::uint64_t ray) const;
 

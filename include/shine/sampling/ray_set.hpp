@@ -23,6 +23,18 @@ class RaySet {
     std::uint32_t add_scan(const Eigen::Vector3f& origin_map,
                            const std::vector<Eigen::Vector3f>& endpoints_map,
                            const std::vector<std::uint32_t>& voxel_begin = {});
+    /// Adds a scan with a normal per endpoint (empty: zero normals); returns its index. Throws
+    /// DataError for a normal count other than 0 or the endpoints'.
+    std::uint32_t add_scan_with_normals(const Eigen::Vector3f& origin_map,
+                                        const std::vector<Eigen::Vector3f>& endpoints_map,
+                                        const std::vector<Eigen::Vector3f>& normals);
+    /// Keeps the first `num_scans` scans (at most num_scans()) and drops the rest.
+    void truncate(std::uint32_t num_scans);
+    /// Drops the first `num_scans` scans (at most num_scans()); the later scans and their rays
+    /// move to the front, renumbered from 0. The storage is kept (no reallocation).
+    void erase_front(std::uint32_t num_scans);
+    /// Drops every scan (and the grouping); the storage is kept.
+    void clear();
     std::size_t num_rays() const { return endpoints_.size(); }
     std::size_t num_scans() const { return origins_.size(); }
     const Eigen::Vector3f& endpoint(std::size_t ray) const { return endpoints_[ray]; }
