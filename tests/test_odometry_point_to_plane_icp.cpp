@@ -97,6 +97,35 @@ TEST(PointToPlaneIcp, RecoversAKnownMotionWithEstimatedNormals) {
     EXPECT_GT(dr0, 0.03);
 }
 
+TEST(PointToPlaneIcp, PlanesFittedForTheLastPointsAreThoseOfTheWholeFit) {
+    // Two grids of the same room, as two scans of a reference: the second scan's planes fitted
+    // alone (its points last, neighbours among both) equal those of fitting every point, and
+    // the whole fit is what ReferencePlanes keeps.
+    Cloud both = room(0.25, 0.0);
+    const std::size_t first = both.points.size();
+    const Cloud second = room(0.3, 0.11);
+    both.points.insert(both.points.end(), second.points.begin(), second.points.end());
+    const std::vector<Eigen::Vector3d> all = fit_plane_normals(both.points, 0, PlaneFitConfig{});
+    const std::vector<Eigen::Vector3d> last =
+        fit_plane_normals(both.points, first, PlaneFitConfig{});
+    ASSERT_EQ(all.size(), both.points.size());
+    ASSERT_EQ(last.size(), both.points.size() - first);
+    std::size_t planes_found = 0;
+    for (std::size_t i = 0; i < last.size(); ++i) {
+        EXPECT_EQ(last[i], all[first + i]) << "point " << first + i;
+        planes_found += last[i].squaredNorm() > 0.0;
+    }
+    EXPECT_GT(planes_found, last.size() / 2);
+    const ReferencePlanes planes(both.points, PlaneFitConfig{});
+    std::vector<Eigen::Vector3d> kept;
+    for (const auto& n : all) {
+        if (n.squaredNorm() > 0.0) kept.push_back(n);
+    }
+    EXPECT_EQ(planes.normals_world(), kept);
+    EXPECT_TRUE(fit_plane_normals(both.points, both.points.size(), PlaneFitConfig{}).empty());
+    EXPECT_THROW(fit_plane_normals(both.points, 0, PlaneFitConfig{4, 1.0}), ConfigError);
+}
+
 TEST(PointToPlaneIcp, GivenNormalsAreUsedAsTheyAre) {
     const Cloud reference = room(0.25, 0.0);
     const ReferencePlanes planes(reference.points, reference.normals);

@@ -149,6 +149,7 @@ Eigen::Isometry3d ScanOdometry::sweep_motion(std::size_t i) const {
 const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& map,
                                              const SweepPrior* sweep_prior) {
     const auto start = std::chrono::steady_clock::now();
+    replaying_ = false;
     OdometryRecord record;
     // 1. Registration points: as measured (`measured`, with their sweep fractions) and deskewed
     // at the prior's motion (`points`), or as given without a prior.
@@ -209,12 +210,15 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
         bool icp_found_start = false;
         if (icp || config_.icp_before_sdf) {
             record.tried = RegistrationMethod::kIcp;
-            std::vector<Eigen::Vector3d> reference;
-            for (const auto& scan_points : reference_world_) {
-                reference.insert(reference.end(), scan_points.begin(), scan_points.end());
+            std::vector<Eigen::Vector3d> reference, normals;
+            for (std::size_t r = 0; r < reference_world_.size(); ++r) {
+                reference.insert(reference.end(), reference_world_[r].begin(),
+                                 reference_world_[r].end());
+                normals.insert(normals.end(), reference_normals_[r].begin(),
+                               reference_normals_[r].end());
             }
             if (!reference.empty()) {
-                const ReferencePlanes planes(reference, PlaneFitConfig{});
+                const ReferencePlanes planes(reference, normals);
                 const bool icp_sweep = icp && continuous;
                 const auto run_icp = [&](const Eigen::Isometry3d& start) {
                     IcpRun run = run_icp_stages(config_, points, icp_sweep ? &measured : nullptr,
@@ -355,8 +359,10 @@ void ScanOdometry::remember_scan(const Scan& scan) {
     if (!config_.icp_before_sdf &&
         poses_.size() > static_cast<std::size_t>(config_.icp_warmup_scans)) {
         reference_world_.clear();
+        reference_normals_.clear();
         return;
     }
+    const auto start = std::chrono::steady_clock::now();
     // The reference is denser than the scan (half its voxel), so that each scan point finds a
     // neighbour on the same surface and the plane fits have points to use.
     const std::vector<Eigen::Vector3f> points = select_registration_points(
@@ -368,6 +374,19 @@ void ScanOdometry::remember_scan(const Scan& scan) {
     reference_world_.push_back(std::move(world));
     while (reference_world_.size() > static_cast<std::size_t>(config_.icp_reference_scans)) {
         reference_world_.pop_front();
+        reference_normals_.pop_front();
+    }
+    // The new scan's planes, among the points of the reference it joins (its own last). Fitted
+    // once: the older scans keep theirs, so a scan costs one scan's fits, not the reference's.
+    std::vector<Eigen::Vector3d> reference;
+    for (const auto& scan_points : reference_world_) {
+        reference.insert(reference.end(), scan_points.begin(), scan_points.end());
+    }
+    reference_normals_.push_back(fit_plane_normals(
+        reference, reference.size() - reference_world_.back().size(), PlaneFitConfig{}));
+    if (!replaying_ && !records_.empty()) {
+        records_.back().seconds +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
 }
 
@@ -403,6 +422,8 @@ void ScanOdometry::load(BinaryReader& in) {
     }
     records_ = std::move(records);
     reference_world_.clear();
+    reference_normals_.clear();
+    replaying_ = true;  // the replayed scans' remember_scan() time is not theirs to count
 }
 
 }  // namespace shine

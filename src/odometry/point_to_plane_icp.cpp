@@ -4,6 +4,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+
 #include "shine/core/error.hpp"
 #include "shine/sampling/surface_normals.hpp"
 
@@ -25,8 +27,8 @@ std::vector<IndexedPoint> indexed_relative(const std::vector<Eigen::Vector3d>& p
 }  // namespace
 }  // namespace point_to_plane_icp_internal
 
-ReferencePlanes::ReferencePlanes(const std::vector<Eigen::Vector3d>& points_world,
-                                 const PlaneFitConfig& fit) {
+std::vector<Eigen::Vector3d> fit_plane_normals(const std::vector<Eigen::Vector3d>& points_world,
+                                               std::size_t first_query, const PlaneFitConfig& fit) {
     using point_to_plane_icp_internal::indexed_relative;
     if (fit.neighbors < 5 || fit.neighbors > PointKdTree::kMaxNeighbors) {
         throw ConfigError("plane fit neighbors must be in [5, " +
@@ -37,28 +39,40 @@ ReferencePlanes::ReferencePlanes(const std::vector<Eigen::Vector3d>& points_worl
         throw ConfigError("plane fit max_radius_m must be positive (got " +
                           std::to_string(fit.max_radius_m) + ")");
     }
-    if (points_world.empty()) return;
-    origin_world_ = points_world.front();
-    const PointKdTree all(indexed_relative(points_world, origin_world_));
+    const std::size_t n = points_world.size();
+    first_query = std::min(first_query, n);
+    std::vector<Eigen::Vector3d> normals(n - first_query, Eigen::Vector3d::Zero());
+    if (first_query == n) return normals;
+    // Relative to the first point, in float: the tree's coordinates.
+    const Eigen::Vector3d origin_world = points_world.front();
+    const PointKdTree all(indexed_relative(points_world, origin_world));
     NormalConfig plane;
     plane.neighbors = fit.neighbors;
     plane.max_radius_m = static_cast<float>(fit.max_radius_m);
-    std::vector<Eigen::Vector3d> normals(points_world.size(), Eigen::Vector3d::Zero());
     const float max_sq = static_cast<float>(fit.max_radius_m * fit.max_radius_m);
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, points_world.size(), 256),
-        [&](const tbb::blocked_range<std::size_t>& range) {
-            PointNeighbor found[PointKdTree::kMaxNeighbors];
-            for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                const Eigen::Vector3f q = (points_world[i] - origin_world_).cast<float>();
-                const int count = all.nearest(q, fit.neighbors, max_sq, found);
-                // The orientation does not matter to a point-to-plane residual:
-                // the sensor argument equals the point, so no flip happens.
-                normals[i] = fit_plane_normal(
-                                 count, [&](int k) { return found[k].position; }, q, q, plane)
-                                 .cast<double>();
-            }
-        });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(first_query, n, 256),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          PointNeighbor found[PointKdTree::kMaxNeighbors];
+                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                              const Eigen::Vector3f q =
+                                  (points_world[i] - origin_world).cast<float>();
+                              const int count = all.nearest(q, fit.neighbors, max_sq, found);
+                              // The orientation does not matter to a point-to-plane residual:
+                              // the sensor argument equals the point, so no flip happens.
+                              normals[i - first_query] =
+                                  fit_plane_normal(
+                                      count, [&](int k) { return found[k].position; }, q, q, plane)
+                                      .cast<double>();
+                          }
+                      });
+    return normals;
+}
+
+ReferencePlanes::ReferencePlanes(const std::vector<Eigen::Vector3d>& points_world,
+                                 const PlaneFitConfig& fit) {
+    const std::vector<Eigen::Vector3d> normals = fit_plane_normals(points_world, 0, fit);
+    if (points_world.empty()) return;
+    origin_world_ = points_world.front();
     for (std::size_t i = 0; i < points_world.size(); ++i) {
         if (normals[i].squaredNorm() > 0.0) {
             points_world_.push_back(points_world[i]);

@@ -124,7 +124,10 @@ class ScanOdometry {
     Eigen::Isometry3d sweep_motion(std::size_t i) const;
 
     /// Keeps `scan` (at its T_world_sensor) as an ICP reference while ICP scans are still to
-    /// come. Called after estimate() for mapped scans, and when resuming for the replayed ones.
+    /// come, with the planes of its points fitted now, among its own and the other reference
+    /// scans' points (fit_plane_normals), and kept while it is a reference. Called after
+    /// estimate() for mapped scans (the time is added to the scan's record), and when resuming
+    /// for the replayed ones.
     void remember_scan(const Scan& scan);
 
     /// Whether the scan of record `i` is to be mapped (not skipped).
@@ -144,6 +147,9 @@ class ScanOdometry {
     std::vector<OdometryRecord> records_;
     /// Registration-thinned points (world frame) of the last icp_reference_scans scans.
     std::deque<std::vector<Eigen::Vector3d>> reference_world_;
+    /// Their plane normals (zero: no plane), each scan's fitted when it joined.
+    std::deque<std::vector<Eigen::Vector3d>> reference_normals_;
+    bool replaying_ = false;  ///< after load(), until the next estimate()
 };
 
 }  // namespace shine

@@ -29,6 +29,14 @@ struct PlaneFitConfig {
     double max_radius_m = 1.0;  ///< neighbours farther than this are not used
 };
 
+/// Unit normals (PCA of each point's neighbourhood, as ReferencePlanes' fit) of the points
+/// [first_query, size) of `points_world`, their neighbours searched among all the points; zero
+/// where no plane fits. Incremental references fit each scan once, when it joins: its points
+/// come last, and the earlier scans' normals stay as they were fitted. Throws ConfigError as
+/// ReferencePlanes does.
+std::vector<Eigen::Vector3d> fit_plane_normals(const std::vector<Eigen::Vector3d>& points_world,
+                                               std::size_t first_query, const PlaneFitConfig& fit);
+
 /// Reference points with unit normals (world frame), searchable by nearest neighbour; immutable
 /// once built, so one instance serves every iteration and thread.
 class ReferencePlanes {
