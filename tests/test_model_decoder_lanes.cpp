@@ -1,5 +1,6 @@
-// Decoder::forward_lanes, DecoderLanes and DecoderLaneQueue (the evaluation path of the bake and of map queries)
-// against Decoder::forward: the same value bit for bit, lane by lane, in the queue's order.
+// Decoder::forward_lanes, DecoderLanes and DecoderLaneQueue (the evaluation path of the bake and of
+// map queries) against Decoder::forward: the same value bit for bit, lane by lane, in the queue's
+// order.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -69,6 +70,42 @@ TEST(DecoderLanes, ForwardLanesEqualsForwardForEveryLane) {
             const float reference = decoder.forward(features.data() + std::size_t(s) * dim, ws);
             expect_same(out[s], reference,
                         "input " + std::to_string(dim) + ", lane " + std::to_string(s));
+        }
+    }
+}
+
+TEST(DecoderLanes, InputGradientLanesEqualsInputGradientForEveryLane) {
+    // Zeros among the features make hidden units exactly zero (the ReLU mask) and rows with a
+    // zero upstream value, which input_gradient() skips.
+    for (const DecoderConfig& config : {DecoderConfig{8, {32, 32}, 3}, DecoderConfig{5, {7}, 11},
+                                        DecoderConfig{4, {16, 3, 9}, 2}, DecoderConfig{1, {}, 8}}) {
+        const Decoder decoder(config);
+        const int dim = config.input_dim;
+        for (const unsigned seed : {17u, 18u, 19u}) {
+            const std::vector<float> features = random_features(kDecoderLanes, dim, seed);
+            std::vector<float> interleaved(std::size_t(dim) * kDecoderLanes);
+            for (int s = 0; s < kDecoderLanes; ++s) {
+                for (int l = 0; l < dim; ++l) {
+                    interleaved[std::size_t(l) * kDecoderLanes + s] =
+                        features[std::size_t(s) * dim + l];
+                }
+            }
+            DecoderWorkspace lanes_ws, ws;
+            decoder.prepare(ws);
+            float out[kDecoderLanes];
+            std::vector<float> h_lanes(std::size_t(dim) * kDecoderLanes);
+            decoder.forward_lanes(interleaved.data(), out, lanes_ws);
+            decoder.input_gradient_lanes(lanes_ws, h_lanes.data());
+            std::vector<float> h(dim);
+            for (int s = 0; s < kDecoderLanes; ++s) {
+                decoder.forward(features.data() + std::size_t(s) * dim, ws);
+                decoder.input_gradient(ws, h.data());
+                for (int l = 0; l < dim; ++l) {
+                    expect_same(h_lanes[std::size_t(l) * kDecoderLanes + s], h[l],
+                                "input " + std::to_string(dim) + ", lane " + std::to_string(s) +
+                                    ", h_" + std::to_string(l));
+                }
+            }
         }
     }
 }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "shine/model/feature_encoding.hpp"
 #include "shine/model/neural_sdf.hpp"
 #include "shine/model/sdf_gradient.hpp"
 
@@ -16,8 +17,9 @@ constexpr float kStepM = 1e-3f;   // central-difference step: 1 mm in 0.25 m cel
 constexpr double kAbsTol = 2e-3;  // per metre: float rounding of values ~0.1 over 2 mm
 constexpr double kRelTol = 2e-2;  // truncation and the odd ReLU kink within the step
 
-NeuralSdf random_map() {
+NeuralSdf random_map(FeaturePrecision precision = FeaturePrecision::kFloat32) {
     FeatureOctreeConfig octree;
+    octree.feature_precision = precision;
     octree.leaf_size_m = 0.25;
     octree.num_levels = 2;
     octree.init_std = 0.3f;
@@ -94,6 +96,61 @@ TEST(SdfGradient, MatchesCentralDifferencesAndQueryValues) {
     EXPECT_GE(checked, 500);  // most of the 200 x 3 derivatives are inside the map
     EXPECT_GE(central, checked * 9 / 10) << "kinks within 1 mm of more than 10 % of the points";
     EXPECT_GT(gradient_norm_sum / checked * 3, 0.05);  // a random map has real slopes
+}
+
+TEST(SdfGradient, EightAtATimeEqualsOnePointAtATime) {
+    // The query evaluates the decoder for up to eight points at once; each point's value and
+    // gradient must be those of the plain per-point path: forward(), input_gradient() and the
+    // encoding's Jacobian. Points outside the map are mixed in, so that the groups of eight
+    // skip points and the last one is partial. Float32 and float16 feature tables.
+    for (const FeaturePrecision precision :
+         {FeaturePrecision::kFloat32, FeaturePrecision::kFloat16}) {
+        const NeuralSdf sdf = random_map(precision);
+        std::mt19937 rng(5);
+        std::uniform_real_distribution<float> u(-0.3f, 1.3f);
+        std::vector<Eigen::Vector3f> points;
+        for (int i = 0; i < 203; ++i) points.emplace_back(u(rng), u(rng), 0.1f + 0.2f * u(rng));
+        std::vector<float> value;
+        std::vector<Eigen::Vector3f> gradient;
+        std::vector<std::uint8_t> valid;
+        query_sdf_and_gradient(sdf, points, QueryMask::kAnyLevel, value, gradient, valid);
+
+        const int dim = sdf.octree.feature_dim();
+        const FeatureTableView features = sdf.octree.features().data();
+        CellLookup lookup(sdf.octree);
+        DecoderWorkspace ws;
+        sdf.decoder.prepare(ws);
+        int inside = 0, outside = 0;
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            EncodedPoint encoded;
+            encode_point(lookup, sdf.octree, points[i], true, encoded);
+            if (!encoded.valid()) {
+                ++outside;
+                EXPECT_EQ(valid[i], 0) << "point " << i;
+                continue;
+            }
+            ++inside;
+            ASSERT_EQ(valid[i], 1) << "point " << i;
+            float feature[kMaxFeatureDim], h[kMaxFeatureDim], jacobian[3 * kMaxFeatureDim];
+            gather_feature(encoded, features, dim, feature);
+            const float f = sdf.decoder.forward(feature, ws);
+            sdf.decoder.input_gradient(ws, h);
+            feature_jacobian(encoded, features, dim, jacobian);
+            Eigen::Vector3f g = Eigen::Vector3f::Zero();
+            for (int l = 0; l < dim; ++l) {
+                for (int a = 0; a < 3; ++a) g[a] += jacobian[l * 3 + a] * h[l];
+            }
+#if defined(__FMA__)
+            EXPECT_NEAR(value[i], f, 1e-5f);
+            EXPECT_LT((gradient[i] - g).norm(), 1e-4f * (1.0f + g.norm()));
+#else
+            EXPECT_EQ(value[i], f) << "point " << i;  // bit for bit
+            EXPECT_EQ(gradient[i], g) << "point " << i;
+#endif
+        }
+        EXPECT_GT(inside, 50);
+        EXPECT_GT(outside, 20);
+    }
 }
 
 TEST(SdfGradient, PointsOutsideTheMapAreInvalidWithZeroGradient) {

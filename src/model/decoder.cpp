@@ -132,6 +132,39 @@ void Decoder::input_gradient(DecoderWorkspace& ws, float* input_gradient) const 
     }
 }
 
+void Decoder::input_gradient_lanes(DecoderWorkspace& ws, float* input_gradient) const {
+    using Lanes = Eigen::Array<float, kDecoderLanes, 1>;
+    constexpr int S = kDecoderLanes;
+    const std::size_t values = (act_offset_.back() + dims_.back()) * S;
+    if (ws.lanes_upstream.size() != values) ws.lanes_upstream.assign(values, 0.0f);
+    const float* a = ws.lanes.data();
+    float* u = ws.lanes_upstream.data();
+    const int K = num_layers();
+    Eigen::Map<Lanes>(u + std::size_t(act_offset_[K]) * S).setConstant(1.0f);
+    for (int k = K - 1; k >= 0; --k) {
+        const float* W = params_.data() + w_offset_[k];
+        const float* u_next = u + std::size_t(act_offset_[k + 1]) * S;
+        const int n_in = dims_[k], n_out = dims_[k + 1];
+        float* target = (k == 0) ? input_gradient : u + std::size_t(act_offset_[k]) * S;
+        std::fill(target, target + std::size_t(n_in) * S, 0.0f);
+        for (int i = 0; i < n_out; ++i) {
+            const Eigen::Map<const Lanes> g(u_next + std::size_t(i) * S);
+            const float* row = W + std::size_t(i) * n_in;
+            for (int j = 0; j < n_in; ++j) {
+                Eigen::Map<Lanes>(target + std::size_t(j) * S) += row[j] * g;
+            }
+        }
+        if (k > 0) {
+            const float* act = a + std::size_t(act_offset_[k]) * S;
+            for (int j = 0; j < n_in; ++j) {
+                Eigen::Map<Lanes> t(target + std::size_t(j) * S);
+                t = (Eigen::Map<const Lanes>(act + std::size_t(j) * S) <= 0.0f)
+                        .select(Lanes::Zero(), t);  // ReLU mask
+            }
+        }
+    }
+}
+
 void Decoder::accumulate_param_gradient(const DecoderWorkspace& ws, float grad_output,
                                         float* param_grads) const {
     const int K = num_layers();

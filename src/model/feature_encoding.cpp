@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "shine/map/half_convert.hpp"
 #include "shine/model/interpolation.hpp"
 
 namespace shine {
@@ -19,7 +20,8 @@ void encode_point(CellLookup& lookup, const FeatureOctree& octree, const Eigen::
         std::copy(cell.rows, cell.rows + 8, out.rows + base);
         if (with_gradients) {
             corner_weights_and_gradients(cell.t, static_cast<float>(octree.cell_size_m(level)),
-                                         out.weights + base, out.weight_gradients_per_m + base, kind);
+                                         out.weights + base, out.weight_gradients_per_m + base,
+                                         kind);
         } else {
             corner_weights(cell.t, out.weights + base, kind);
         }
@@ -66,6 +68,29 @@ void gather_feature(const EncodedPoint& encoded, FeatureTableView features, int 
         gather_feature_impl(encoded, features.f16, feature_dim, feature_out);
     } else {
         gather_feature_impl(encoded, features.f32, feature_dim, feature_out);
+    }
+}
+
+void gather_feature_and_jacobian(const EncodedPoint& encoded, FeatureTableView features,
+                                 int feature_dim, float* feature_out, float* jacobian_out) {
+    std::fill(feature_out, feature_out + feature_dim, 0.0f);
+    std::fill(jacobian_out, jacobian_out + 3 * feature_dim, 0.0f);
+    float row[kMaxFeatureDim];
+    for (int c = 0; c < encoded.num_corners; ++c) {
+        const std::size_t first = std::size_t(encoded.rows[c]) * feature_dim;
+        if (features.f16) {
+            halves_to_floats(features.f16 + first, row, static_cast<std::size_t>(feature_dim));
+        } else {
+            std::copy(features.f32 + first, features.f32 + first + feature_dim, row);
+        }
+        const float w = encoded.weights[c];
+        const float* g = encoded.weight_gradients_per_m[c];
+        for (int l = 0; l < feature_dim; ++l) {
+            feature_out[l] += w * row[l];
+            jacobian_out[l * 3 + 0] += row[l] * g[0];
+            jacobian_out[l * 3 + 1] += row[l] * g[1];
+            jacobian_out[l * 3 + 2] += row[l] * g[2];
+        }
     }
 }
 

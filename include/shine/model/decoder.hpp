@@ -26,7 +26,8 @@ struct DecoderWorkspace {
     std::vector<float> activations;  ///< a_0 = F, a_1 ... a_M (post-ReLU)
     std::vector<float> upstream;     ///< u_k = df/dz_k for k = 1..K (u_K = 1)
     std::vector<float> scratch;
-    std::vector<float> lanes;  ///< forward_lanes(): a_0 ... a_K of kDecoderLanes samples
+    std::vector<float> lanes;           ///< forward_lanes(): a_0 ... a_K of kDecoderLanes samples
+    std::vector<float> lanes_upstream;  ///< input_gradient_lanes(): u_k of every lane
 };
 
 /// Samples that Decoder::forward_lanes() evaluates at once.
@@ -58,6 +59,12 @@ class Decoder {
 
     /// After forward(): h = df/dF into input_gradient (length L); fills ws.upstream.
     void input_gradient(DecoderWorkspace& ws, float* input_gradient) const;
+
+    /// After forward_lanes(): h = df/dF of every lane, h_l of lane s at
+    /// input_gradient[l * kDecoderLanes + s]. Each lane does input_gradient()'s operations in
+    /// the same order (a row skipped there for a zero upstream value adds zeros here, which
+    /// leaves every sum's bits as they are), so its h is input_gradient()'s bit for bit.
+    void input_gradient_lanes(DecoderWorkspace& ws, float* input_gradient) const;
 
     /// After input_gradient(): adds dL/dparams for dL/df = grad_output into param_grads.
     void accumulate_param_gradient(const DecoderWorkspace& ws, float grad_output,

@@ -42,4 +42,9 @@ void gather_feature(const EncodedPoint& encoded, FeatureTableView features, int 
 void feature_jacobian(const EncodedPoint& encoded, FeatureTableView features, int feature_dim,
                       float* jacobian_out);
 
+/// gather_feature() and feature_jacobian() together, each corner's row read (and, in a float16
+/// table, converted) once: the same sums in the same order, so the same bits as the two calls.
+void gather_feature_and_jacobian(const EncodedPoint& encoded, FeatureTableView features,
+                                 int feature_dim, float* feature_out, float* jacobian_out);
+
 }  // namespace shine
