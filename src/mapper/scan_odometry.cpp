@@ -35,6 +35,13 @@ RegistrationSolverConfig solver_config(const OdometryConfig& c, double kernel_sc
     solver.max_condition_number = c.max_condition_number;
     solver.kernel.type = RobustKernelType::kGemanMcClure;
     solver.kernel.scale_m = kernel_scale_m;
+    // A step below 0.3 mm (at the street's 0.5 m registration voxels; it follows the voxel as
+    // the other lengths do) and 0.0017 deg ends a scan's solve, three times the solver's
+    // defaults: on the streets, distorted or not, the estimates stay within 0.3 mm of ATE and
+    // 0.07 points of F-score of the tighter ones, in about a fifth fewer iterations
+    // (docs/odometry.md, "Time per scan").
+    solver.converged_translation_m = 6e-4 * c.voxel_size_m;
+    solver.converged_rotation_rad = 3e-5;
     return solver;
 }
 
