@@ -150,7 +150,6 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     }
     consolidation_band_m_ = config_.sampling.surface_band_m;
     config_.sampling.surface_band_m = inc.surface_band_m;
-    config_.sampling.free_samples = inc.free_samples;
     config_.trainer.feature_adam.learning_rate = inc.learning_rate;
     config_.trainer.batch_size = inc.batch_size;
     config_.normals.neighbors = inc.normal_neighbors;

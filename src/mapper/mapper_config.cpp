@@ -236,7 +236,6 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"learning_rate", number(c.incremental.learning_rate, 1e-7, 10.0)},
           {"batch_size", number(c.incremental.batch_size, 1, 1 << 22)},
           {"surface_band_m", number(c.incremental.surface_band_m, 1e-4, 10.0)},
-          {"free_samples", number(c.incremental.free_samples, 0, 32)},
           {"normal_window_frames", number(c.incremental.normal_window_frames, 1, 100)},
           {"normal_neighbors", number(c.incremental.normal_neighbors, 5, 64)},
           {"replay_frames", number(c.incremental.replay_frames, 1, 100000)},

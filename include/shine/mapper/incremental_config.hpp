@@ -35,13 +35,6 @@ struct IncrementalConfig {
     /// with one scan per training round, a narrow band (the paper's +-3 sigma) places the
     /// surface better; measured in docs/incremental.md.
     float surface_band_m = 0.15f;
-    /// Free-space samples per ray in incremental mode (replaces sampling.free_samples; the surface
-    /// samples stay sampling.surface_samples). Space that later scans see through is carved only
-    /// by free-space samples there: on the street with 20 movers, 2 instead of 1 take the ghosts
-    /// from 3.55 to 2.77 % of the static surface and the F-score from 95.00 to 95.34 %, for
-    /// -0.04 / -0.13 / -0.12 points on streets without movers; at 0.1 m the real walk's held-out
-    /// rays within 10 cm rise 0.16 / 0.27 points (docs/movers.md, docs/incremental.md).
-    int free_samples = 2;
     /// Normals of the current scan's endpoints are estimated among the endpoints of the current
     /// scan and the scans just before it, this many in all (1: the current scan alone), from
     /// normal_neighbors of them (replaces sampling.normal_neighbors in incremental mode). 7 scans
