@@ -47,6 +47,17 @@ std::vector<float> random_features(int count, int dim, unsigned seed) {
     }
     return features;
 }
+/// kDecoderLanes samples' features, row by row, in the lanes' layout: feature l of sample s at
+/// [l * kDecoderLanes + s].
+std::vector<float> interleave(const std::vector<float>& features, int dim) {
+    std::vector<float> interleaved(std::size_t(dim) * kDecoderLanes);
+    for (int s = 0; s < kDecoderLanes; ++s) {
+        for (int l = 0; l < dim; ++l) {
+            interleaved[std::size_t(l) * kDecoderLanes + s] = features[std::size_t(s) * dim + l];
+        }
+    }
+    return interleaved;
+}
 }  // namespace
 
 TEST(DecoderLanes, ForwardLanesEqualsForwardForEveryLane) {
@@ -55,13 +66,7 @@ TEST(DecoderLanes, ForwardLanesEqualsForwardForEveryLane) {
         const Decoder decoder(config);
         const int dim = config.input_dim;
         const std::vector<float> features = random_features(kDecoderLanes, dim, 17);
-        std::vector<float> interleaved(std::size_t(dim) * kDecoderLanes);
-        for (int s = 0; s < kDecoderLanes; ++s) {
-            for (int l = 0; l < dim; ++l) {
-                interleaved[std::size_t(l) * kDecoderLanes + s] =
-                    features[std::size_t(s) * dim + l];
-            }
-        }
+        const std::vector<float> interleaved = interleave(features, dim);
         DecoderWorkspace lanes_ws, ws;
         decoder.prepare(ws);
         float out[kDecoderLanes];
@@ -83,13 +88,7 @@ TEST(DecoderLanes, InputGradientLanesEqualsInputGradientForEveryLane) {
         const int dim = config.input_dim;
         for (const unsigned seed : {17u, 18u, 19u}) {
             const std::vector<float> features = random_features(kDecoderLanes, dim, seed);
-            std::vector<float> interleaved(std::size_t(dim) * kDecoderLanes);
-            for (int s = 0; s < kDecoderLanes; ++s) {
-                for (int l = 0; l < dim; ++l) {
-                    interleaved[std::size_t(l) * kDecoderLanes + s] =
-                        features[std::size_t(s) * dim + l];
-                }
-            }
+            const std::vector<float> interleaved = interleave(features, dim);
             DecoderWorkspace lanes_ws, ws;
             decoder.prepare(ws);
             float out[kDecoderLanes];
