@@ -3,17 +3,22 @@
 //
 // ctest runs each test in its own process, in parallel, so every test works in its own directory
 // <SHINE_TEST_TMP_DIR>/<suite>/<test name>. SHINE_TEST_TMP_DIR and SHINE_CLI_PATH are set by
-// tests/CMakeLists.txt.
+// tests/CMakeLists.txt. A test that passes removes its directory when it ends (streets, maps and
+// meshes add up to gigabytes over the whole suite); a failed test keeps it for a look, and so does
+// every test when SHINE_KEEP_TEST_DIRS is set.
 #pragma once
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <system_error>
+#include <vector>
 
 namespace shine::cli_test {
 
@@ -24,11 +29,39 @@ struct CliResult {
     std::string output;  ///< stdout and stderr, interleaved
 };
 
-/// <SHINE_TEST_TMP_DIR>/`suite`/<name of the running test>, created if missing.
+/// The directories test_dir_of() made for the running test.
+inline std::vector<fs::path>& dirs_of_running_test() {
+    static std::vector<fs::path> dirs;
+    return dirs;
+}
+
+/// Removes the running test's directories when it passed (see the top of this file).
+class RemoveDirsOfPassedTests : public ::testing::EmptyTestEventListener {
+    void OnTestEnd(const ::testing::TestInfo& info) override {
+        std::vector<fs::path>& dirs = dirs_of_running_test();
+        if (info.result()->Passed() && std::getenv("SHINE_KEEP_TEST_DIRS") == nullptr) {
+            for (const fs::path& d : dirs) {
+                std::error_code ignored;  // a directory left behind costs disk, not correctness
+                fs::remove_all(d, ignored);
+            }
+        }
+        dirs.clear();
+    }
+};
+
+inline const bool kRemovesDirsOfPassedTests = [] {
+    ::testing::UnitTest::GetInstance()->listeners().Append(new RemoveDirsOfPassedTests);
+    return true;
+}();
+
+/// <SHINE_TEST_TMP_DIR>/`suite`/<name of the running test>, created if missing; removed when the
+/// test passes.
 inline fs::path test_dir_of(const std::string& suite) {
     const fs::path d = fs::path(SHINE_TEST_TMP_DIR) / suite /
                        ::testing::UnitTest::GetInstance()->current_test_info()->name();
     fs::create_directories(d);
+    std::vector<fs::path>& dirs = dirs_of_running_test();
+    if (std::find(dirs.begin(), dirs.end(), d) == dirs.end()) dirs.push_back(d);
     return d;
 }
 
