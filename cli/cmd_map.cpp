@@ -194,6 +194,8 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
                              {"rays", mapper.consolidation().rays},
                              {"surface_band_m", mapper.consolidation().surface_band_m},
                              {"learning_rate", inc.consolidation_learning_rate},
+                             {"free_samples", mapper.consolidation().free_samples},
+                             {"batch_size", mapper.consolidation().batch_size},
                              {"seconds", mapper.consolidation().seconds},
                              {"bce", mapper.consolidation().bce}}},
                            {"frames", frames},

@@ -211,6 +211,8 @@ class NeuralMap {
         out["scans"] = c.scans;
         out["rays"] = c.rays;
         out["surface_band_m"] = c.surface_band_m;
+        out["free_samples"] = c.free_samples;
+        out["batch_size"] = c.batch_size;
         out["seconds"] = c.seconds;
         out["bce"] = c.bce;
         return out;

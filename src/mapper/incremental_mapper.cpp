@@ -148,6 +148,13 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     if (!(inc.consolidation_learning_rate > 0.0f)) {
         throw ConfigError("incremental.consolidation_learning_rate must be positive");
     }
+    if (inc.consolidation_free_samples < 0 || inc.consolidation_free_samples > 32 ||
+        config_.sampling.surface_samples + inc.consolidation_free_samples < 1) {
+        throw ConfigError(
+            "incremental.consolidation_free_samples must be between 0 and 32 (and leave at least "
+            "one sample per ray), got " +
+            std::to_string(inc.consolidation_free_samples));
+    }
     consolidation_band_m_ = config_.sampling.surface_band_m;
     config_.sampling.surface_band_m = inc.surface_band_m;
     config_.trainer.feature_adam.learning_rate = inc.learning_rate;
@@ -349,6 +356,16 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     trainer_->begin_scan();
     trainer_->release_inactive_state(1);
     trainer_->set_surface_band_m(consolidation_band_m_);
+    // As many rays per step as the scans' steps, with more free-space samples on each.
+    const SamplingConfig& scans_sampling = config_.sampling;
+    SamplingConfig sampling = scans_sampling;
+    sampling.free_samples = config_.incremental.consolidation_free_samples;
+    const int rays_per_step =
+        std::max(1, config_.trainer.batch_size / scans_sampling.samples_per_ray());
+    consolidation_.free_samples = sampling.free_samples;
+    consolidation_.batch_size = rays_per_step * sampling.samples_per_ray();
+    trainer_->set_free_samples_and_batch_size(consolidation_.free_samples,
+                                              consolidation_.batch_size);
     const float lr0 = config_.incremental.consolidation_learning_rate;
     const double final_ratio = config_.final_learning_rate_ratio;
     TrainStepStats last;
@@ -360,6 +377,8 @@ const ConsolidationStats& IncrementalMapper::consolidate(
         if (progress) progress(it + 1, steps);
     }
     trainer_->set_surface_band_m(config_.sampling.surface_band_m);
+    trainer_->set_free_samples_and_batch_size(scans_sampling.free_samples,
+                                              config_.trainer.batch_size);
     trainer_->set_feature_learning_rate(config_.trainer.feature_adam.learning_rate);
     consolidation_.steps = steps;
     consolidation_.bce = last.bce;

@@ -83,6 +83,22 @@ Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConf
 
 Trainer::~Trainer() = default;
 
+void Trainer::set_free_samples_and_batch_size(int free_samples, int batch_size) {
+    SamplingConfig sampling = sampling_;
+    sampling.free_samples = free_samples;
+    if (free_samples < 0 || sampling.samples_per_ray() < 1 ||
+        sampling.samples_per_ray() > kMaxSamplesPerRay) {
+        throw ConfigError("samples per ray must be between 1 and " +
+                          std::to_string(kMaxSamplesPerRay));
+    }
+    if (batch_size < sampling.samples_per_ray()) {
+        throw ConfigError("batch_size must be at least the samples per ray (" +
+                          std::to_string(sampling.samples_per_ray()) + ")");
+    }
+    sampling_.free_samples = free_samples;
+    config_.batch_size = batch_size;
+}
+
 void Trainer::on_map_grown() {
     const std::size_t rows = sdf_.octree.num_corners();
     row_state_.resize(rows);

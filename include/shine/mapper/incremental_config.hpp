@@ -80,6 +80,14 @@ struct IncrementalConfig {
     /// the streets by 2-3 F-score points (docs/incremental.md).
     int consolidation_steps = 1000;
     float consolidation_learning_rate = 0.01f;
+    /// Free-space samples per ray in the consolidation (the scans' own steps take
+    /// sampling.free_samples, 1). Each consolidation step takes as many rays as a scan's step
+    /// (batch_size / samples per ray), so its batch grows with the samples: the surface is
+    /// trained as before, and the free space that later rays crossed, where a moving car or
+    /// person was mapped before the filter saw through it, gets five samples a ray instead of one.
+    /// On the street with 20 movers the ghost area falls from 3.55 to 2.28 % of the static
+    /// surface and the streets without movers gain 0.2-0.3 F-score points (docs/movers.md).
+    int consolidation_free_samples = 5;
 };
 
 }  // namespace shine

@@ -80,6 +80,8 @@ struct ConsolidationStats {
     double seconds = 0.0;   ///< wall-clock
     double bce = 0.0;       ///< the last step's mean BCE
     float surface_band_m = 0.0f;
+    int free_samples = 0;  ///< free-space samples per ray
+    int batch_size = 0;    ///< samples per step
 };
 
 /// The decoder incremental mode uses for `config`: config.incremental.decoder_weights resolved

@@ -132,6 +132,9 @@ class Trainer {
     void set_decoder_learning_rate(float lr) { decoder_adam_.set_learning_rate(lr); }
     /// The half-width of the band the surface samples are drawn from, from the next step on.
     void set_surface_band_m(float band_m) { sampling_.surface_band_m = band_m; }
+    /// Free-space samples per ray and samples per step, from the next step on; throws
+    /// ConfigError if the samples per ray leave [1, kMaxSamplesPerRay] or exceed the batch.
+    void set_free_samples_and_batch_size(int free_samples, int batch_size);
     std::size_t optimizer_bytes() const {
         return row_state_.memory_bytes() + decoder_adam_.memory_bytes() + local_index_.bytes();
     }
