@@ -223,3 +223,34 @@ TEST(Preprocess, DownsampleBreaksDistanceTiesIndependentlyOfOrder) {
     EXPECT_EQ(ab, ba);
     EXPECT_EQ(ab[0], a);  // the lexicographically smaller point wins the tie
 }
+
+TEST(Preprocess, SourceIndexNamesTheInputPointOfEachOutputPoint) {
+    using namespace shine;
+    // Random points (some out of range, one NaN) through each path: no thinning, thinning, and
+    // every point grouped by voxel. Each output point is the input point its index names, and
+    // asking for the indices changes nothing else.
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-30.0f, 30.0f);
+    std::vector<Eigen::Vector3f> points;
+    for (int i = 0; i < 40000; ++i) points.emplace_back(u(rng), u(rng), 0.1f * u(rng));
+    points[17] = Eigen::Vector3f(NAN, 0.0f, 0.0f);
+    for (const double voxel_m : {0.0, 0.5}) {
+        for (const VoxelPoints mode : {VoxelPoints::kNearest, VoxelPoints::kAll}) {
+            PreprocessConfig config;
+            config.voxel_downsample_m = voxel_m;
+            config.voxel_points = mode;
+            config.max_range_m = 35.0;
+            std::vector<std::uint32_t> groups, groups_plain, index;
+            const auto plain = preprocess_scan(points, config, "random", nullptr, &groups_plain);
+            const auto out = preprocess_scan(points, config, "random", nullptr, &groups, &index);
+            ASSERT_EQ(out, plain);
+            EXPECT_EQ(groups, groups_plain);
+            ASSERT_EQ(index.size(), out.size());
+            ASSERT_LT(out.size(), points.size());
+            for (std::size_t k = 0; k < out.size(); ++k) {
+                ASSERT_LT(index[k], points.size());
+                ASSERT_EQ(out[k], points[index[k]]) << k;
+            }
+        }
+    }
+}

@@ -171,5 +171,38 @@ TEST(RaySet, NormalsOfAScanMustMatchItsPoints) {
     EXPECT_EQ(set.normal(3), Eigen::Vector3f::UnitX());
 }
 
+TEST(RaySet, RayOriginsFollowTheirRaysThroughTruncateAndEraseFront) {
+    // Scans 0 and 2 without ray origins (their rays start at the scan's origin), scan 1 with one
+    // per ray; the set keeps each ray's origin as rays are cut from either end.
+    const std::vector<Eigen::Vector3f> points{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    const std::vector<Eigen::Vector3f> ray_origins{{0.1f, 0, 0}, {0.2f, 0, 0}, {0.3f, 0, 0}};
+    const Eigen::Vector3f o0(10, 0, 0), o1(20, 0, 0), o2(30, 0, 0);
+    const auto build = [&] {
+        RaySet set;
+        set.add_scan(o0, points);
+        EXPECT_FALSE(set.has_ray_origins());
+        set.add_scan_with_normals(o1, points, {}, ray_origins);
+        set.add_scan(o2, points);
+        return set;
+    };
+    RaySet set = build();
+    ASSERT_TRUE(set.has_ray_origins());
+    EXPECT_EQ(set.origin_of_ray(0), o0);
+    EXPECT_EQ(set.origin_of_ray(4), ray_origins[1]);
+    EXPECT_EQ(set.origin_of_ray(8), o2);
+    EXPECT_EQ(set.origin_of_scan(1), o1);
+    set.erase_front(1);
+    EXPECT_EQ(set.origin_of_ray(0), ray_origins[0]);
+    EXPECT_EQ(set.origin_of_ray(5), o2);
+    set.truncate(1);
+    ASSERT_EQ(set.num_rays(), 3u);
+    EXPECT_EQ(set.origin_of_ray(2), ray_origins[2]);
+    set.clear();
+    EXPECT_FALSE(set.has_ray_origins());
+    set.add_scan(o0, points);
+    EXPECT_EQ(set.origin_of_ray(1), o0);
+    EXPECT_THROW(set.add_scan(o0, points, {}, std::vector<Eigen::Vector3f>(2)), DataError);
+}
+
 }  // namespace
 }  // namespace shine

@@ -2,7 +2,11 @@
 // map.origin_world_m) and the world-frame crop that tiles of a larger map use.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "shine/mapper/scan_in_map.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
+#include "shine/odometry/scan_deskew.hpp"
 
 namespace shine {
 namespace {
@@ -57,6 +61,58 @@ TEST(ScanInMap, WorldCropKeepsThePointsInsideTheHalfOpenBox) {
     }
     EXPECT_EQ(stats.dropped_box, 15u);
     EXPECT_EQ(stats.output, 6u);
+}
+
+TEST(ScanInMap, EachKeptPointKeepsTheOriginItWasMeasuredFrom) {
+    // A deskewed scan: point i was measured from (0.01 i, 0, 0) in its sensor frame. Thinning
+    // and the world crop keep some points; each kept one carries its own origin into the map
+    // frame, and a scan without origins carries none.
+    MapperConfig config;
+    config.preprocess.voxel_downsample_m = 2.0;  // one point of the line per 2 m voxel
+    config.preprocess.min_range_m = 0.1;
+    config.crop_world_m = {1995.0, -100.0, -100.0, 2007.0, 100.0, 100.0};
+    Scan scan = scan_at(Eigen::Vector3d(2000.0, 0.0, 0.0));
+    for (std::size_t i = 0; i < scan.points_sensor.size(); ++i) {
+        scan.point_origin_sensor.emplace_back(0.01f * static_cast<float>(i), 0.0f, 0.0f);
+    }
+    NeuralSdf sdf(config.octree, config.decoder);
+    bool origin_set = false;
+    PreprocessStats stats;
+    const ScanInMap s = scan_in_map_frame(scan, config, sdf, origin_set, stats);
+    ASSERT_GT(s.points_map.size(), 2u);
+    ASSERT_LT(s.points_map.size(), scan.points_sensor.size());
+    ASSERT_EQ(s.point_origins_map.size(), s.points_map.size());
+    for (std::size_t k = 0; k < s.points_map.size(); ++k) {
+        // The line's point i lies at sensor x = i - 10.
+        const float x_sensor = s.points_map[k].x() - s.origin_map.x();
+        const int i = static_cast<int>(std::lround(x_sensor)) + 10;
+        EXPECT_FLOAT_EQ(s.point_origins_map[k].x() - s.origin_map.x(), 0.01f * i) << k;
+        EXPECT_FLOAT_EQ(s.point_origins_map[k].y(), s.origin_map.y());
+    }
+    scan.point_origin_sensor.clear();
+    EXPECT_TRUE(scan_in_map_frame(scan, config, sdf, origin_set, stats).point_origins_map.empty());
+}
+
+TEST(ScanInMap, DeskewingGivesEachPointTheSensorPositionAtItsTime) {
+    // A sweep of 0.1 s during which the sensor moved 1 m along x and turned 2 degrees: each
+    // point's origin is the sensor's position at the point's time, in the scan's frame.
+    Scan scan = scan_at(Eigen::Vector3d::Zero());
+    for (std::size_t i = 0; i < scan.points_sensor.size(); ++i) {
+        scan.point_time_s.push_back(-0.1 + 0.005 * static_cast<double>(i));
+    }
+    Eigen::Isometry3d T_prev_cur = Eigen::Isometry3d::Identity();
+    T_prev_cur.translate(Eigen::Vector3d(1.0, 0.0, 0.0));
+    T_prev_cur.rotate(Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()));
+    DeskewStats stats;
+    deskew_in_place(scan, T_prev_cur, 0.1, stats);
+    ASSERT_EQ(scan.point_origin_sensor.size(), scan.points_sensor.size());
+    for (std::size_t i = 0; i < scan.points_sensor.size(); ++i) {
+        const Eigen::Vector3d expected =
+            sensor_pose_at(T_prev_cur, 0.1, scan.point_time_s[i]).translation();
+        EXPECT_LT((scan.point_origin_sensor[i].cast<double>() - expected).norm(), 1e-6) << i;
+    }
+    EXPECT_NEAR(scan.point_origin_sensor.front().x(), -1.0, 1e-3);  // a sweep earlier
+    EXPECT_NEAR(scan.point_origin_sensor.back().x(), 0.0, 1e-3);    // at the scan's time
 }
 
 }  // namespace

@@ -95,12 +95,14 @@ struct Candidate {
     preprocess_internal::VoxelKey key;
     double distance2;
     Eigen::Vector3f point;
+    std::uint32_t index;  ///< in the input
 };
 
 /// One block of the input: its kept points (grouped by voxel part when downsampling), its counts,
 /// and the first point (block-local index) that stops the scan, if any.
 struct Block {
     std::vector<Eigen::Vector3f> kept;               ///< without downsampling
+    std::vector<std::uint32_t> kept_index;           ///< their input indices
     std::vector<Candidate> candidates[kVoxelParts];  ///< with downsampling
     PreprocessStats stats;
     std::size_t first_nonfinite = kNone;  ///< input index
@@ -119,10 +121,12 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
 std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
                                              const PreprocessConfig& config, const fs::path& source,
                                              PreprocessStats* stats,
-                                             std::vector<std::uint32_t>* voxel_begin) {
+                                             std::vector<std::uint32_t>* voxel_begin,
+                                             std::vector<std::uint32_t>* source_index) {
     using namespace preprocess_internal;
     validate(config);
     if (voxel_begin != nullptr) voxel_begin->clear();
+    if (source_index != nullptr) source_index->clear();
     const bool downsample = config.voxel_downsample_m > 0.0;
     const bool grouped =
         downsample && voxel_begin != nullptr && config.voxel_points == VoxelPoints::kAll;
@@ -163,6 +167,8 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
             const std::size_t local = block.kept_count++;
             if (!downsample) {
                 block.kept.push_back(p);
+                if (source_index != nullptr)
+                    block.kept_index.push_back(static_cast<std::uint32_t>(i));
                 continue;
             }
             const Eigen::Vector3d scaled = pd / v;
@@ -176,7 +182,8 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
                                static_cast<std::int64_t>(cell.z())};
             // Distance to the voxel centre in voxel units (same order as in metres).
             const double d2 = (scaled - cell - Eigen::Vector3d::Constant(0.5)).squaredNorm();
-            block.candidates[hash(key) % kVoxelParts].push_back({key, d2, p});
+            block.candidates[hash(key) % kVoxelParts].push_back(
+                {key, d2, p, static_cast<std::uint32_t>(i)});
         }
     });
 
@@ -210,8 +217,13 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
     std::vector<Eigen::Vector3f> kept;
     if (!downsample) {
         kept.reserve(kept_count);
-        for (const Block& block : blocks)
+        for (const Block& block : blocks) {
             kept.insert(kept.end(), block.kept.begin(), block.kept.end());
+            if (source_index != nullptr) {
+                source_index->insert(source_index->end(), block.kept_index.begin(),
+                                     block.kept_index.end());
+            }
+        }
     } else if (grouped && kept_count > 0) {
         // 2'. Every point, grouped by voxel: sorted by key, then as the thinning ranks them (a
         // total order, so the result does not depend on the input order either).
@@ -233,13 +245,14 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
                 voxel_begin->push_back(static_cast<std::uint32_t>(i));
             }
             kept.push_back(all[i]->point);
+            if (source_index != nullptr) source_index->push_back(all[i]->index);
         }
     } else if (kept_count > 0) {
         // 2. Per voxel, the point closest to its centre (exact ties: the lexicographically
         // smaller point), a total order, so neither the input order nor the split into blocks and
         // parts changes the choice. Each part of the voxels is thinned in parallel, visiting its
         // points in input order.
-        std::vector<std::pair<VoxelKey, Eigen::Vector3f>> chosen[kVoxelParts];
+        std::vector<std::pair<VoxelKey, const Candidate*>> chosen[kVoxelParts];
         tbb::parallel_for(std::size_t(0), kVoxelParts, [&](std::size_t part) {
             // Per voxel, its best candidate so far.
             std::unordered_map<VoxelKey, const Candidate*, VoxelKeyHash> voxels;
@@ -267,11 +280,11 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
                 }
             }
             chosen[part].reserve(voxels.size());
-            for (const auto& [key, best] : voxels) chosen[part].emplace_back(key, best->point);
+            for (const auto& [key, best] : voxels) chosen[part].emplace_back(key, best);
         });
         // Output sorted by voxel key: the result is then independent of the input order, not
         // just as a set but element by element.
-        std::vector<std::pair<VoxelKey, Eigen::Vector3f>> all;
+        std::vector<std::pair<VoxelKey, const Candidate*>> all;
         std::size_t voxels = 0;
         for (const auto& part : chosen) voxels += part.size();
         all.reserve(voxels);
@@ -279,7 +292,10 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
         std::sort(all.begin(), all.end(),
                   [](const auto& a, const auto& b) { return a.first < b.first; });
         kept.reserve(all.size());
-        for (const auto& c : all) kept.push_back(c.second);
+        for (const auto& c : all) {
+            kept.push_back(c.second->point);
+            if (source_index != nullptr) source_index->push_back(c.second->index);
+        }
         s.dropped_downsample = kept_count - kept.size();
     }
     s.output = kept.size();

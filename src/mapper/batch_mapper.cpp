@@ -48,7 +48,8 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
     const ScanInMap in_map =
         scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess, true);
     const std::vector<Eigen::Vector3f>& points_map = in_map.points_map;
-    const std::uint32_t index = rays_.add_scan(in_map.origin_map, points_map, in_map.voxel_begin);
+    const std::uint32_t index =
+        rays_.add_scan(in_map.origin_map, points_map, in_map.voxel_begin, in_map.point_origins_map);
     const bool filter = config_.dynamic.enabled;
     if (filter) {
         if (dynamic_dropped_) {
@@ -120,11 +121,16 @@ void BatchMapper::finish_scans() {
     auto start = std::chrono::steady_clock::now();
     RaySet kept;
     std::vector<Eigen::Vector3f> points;
+    std::vector<Eigen::Vector3f> origins;
     std::size_t dropped = 0;
     for (std::uint32_t s = 0; s < rays_.num_scans(); ++s) {
         const std::size_t begin = rays_.first_ray(s), end = rays_.first_ray(s + 1);
         points.clear();
-        for (std::size_t r = begin; r < end; ++r) points.push_back(rays_.endpoint(r));
+        origins.clear();
+        for (std::size_t r = begin; r < end; ++r) {
+            points.push_back(rays_.endpoint(r));
+            if (rays_.has_ray_origins()) origins.push_back(rays_.origin_of_ray(r));
+        }
         std::vector<std::uint32_t> voxel_begin = rays_.scan_voxel_begin(s);
         const std::size_t first_group = rays_.group_at_or_after(begin);
         // Each point's own votes (its voxel group's), then spread over compact objects.
@@ -135,9 +141,16 @@ void BatchMapper::finish_scans() {
         const DynamicObjectStats objects =
             spread_dynamic_to_objects(points, dynamic, config_.dynamic.objects);
         stats_.dynamic_objects += objects.objects_dynamic;
+        if (!origins.empty()) {
+            std::size_t k = 0;
+            for (std::size_t i = 0; i < origins.size(); ++i) {
+                if (!dynamic[i]) origins[k++] = origins[i];
+            }
+            origins.resize(k);
+        }
         dropped += filter_voxel_grouped(points, voxel_begin,
                                         [&](std::size_t i, std::size_t) { return !dynamic[i]; });
-        kept.add_scan(rays_.origin_of_scan(s), points, voxel_begin);
+        kept.add_scan(rays_.origin_of_scan(s), points, voxel_begin, origins);
     }
     rays_ = std::move(kept);
     votes_ = {};

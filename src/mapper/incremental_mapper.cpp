@@ -242,15 +242,18 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     const std::vector<std::uint8_t> current_dynamic =
         dynamic_flags(objects ? &current_objects_ : nullptr, votes);
     std::size_t kept = 0;
+    const bool current_origins = current.point_origins_map.size() == votes.size();
     for (std::size_t i = 0; i < votes.size(); ++i) {
         if (current_dynamic[i]) continue;
         current.points_map[kept] = current.points_map[i];
+        if (current_origins) current.point_origins_map[kept] = current.point_origins_map[i];
         if (objects) current_objects_.object_of[kept] = current_objects_.object_of[i];
         votes[kept++] = votes[i];
     }
     if (objects) current_objects_.object_of.resize(kept);
     frame.dynamic_dropped = votes.size() - kept;
     current.points_map.resize(kept);
+    if (current_origins) current.point_origins_map.resize(kept);
     votes.resize(kept);
     // The points of the normal window's scans that this scan sees through are dropped (with their
     // normals), so that replay and the normals of later scans no longer use them. Older replayed
@@ -259,12 +262,14 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
         std::min<std::size_t>(window_.size(), config_.incremental.normal_window_frames);
     for (std::size_t w = window_.size() - normal_scans; w < window_.size(); ++w) {
         std::vector<Eigen::Vector3f>& points = window_[w].points_map;
+        std::vector<Eigen::Vector3f>& origins = window_[w].point_origins_map;
         std::vector<FreeSpaceVotes>& past_votes = window_votes_[w];
         std::vector<Eigen::Vector3f>& normals = window_normals_[w];
         if (points.empty() || past_votes.size() != points.size()) continue;
         add_free_space_votes(image, T_sensor_map, points.data(), points.size(), dynamic,
                              past_votes.data());
         const bool with_normals = normals.size() == points.size();
+        const bool with_origins = origins.size() == points.size();
         ScanObjects& past_objects = window_objects_[w];
         const bool with_objects = objects && past_objects.object_of.size() == points.size();
         const std::vector<std::uint8_t> past_dynamic =
@@ -275,6 +280,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
             points[k] = points[i];
             past_votes[k] = past_votes[i];
             if (with_normals) normals[k] = normals[i];
+            if (with_origins) origins[k] = origins[i];
             if (with_objects) past_objects.object_of[k] = past_objects.object_of[i];
             ++k;
         }
@@ -283,6 +289,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
         points.resize(k);
         past_votes.resize(k);
         if (with_normals) normals.resize(k);
+        if (with_origins) origins.resize(k);
     }
     stats_.dynamic_points_dropped += frame.dynamic_dropped + frame.dynamic_forgotten;
     voters_.emplace_back(T_sensor_map, std::move(image));

@@ -37,8 +37,10 @@ void ReplayRays::sync(const std::deque<ScanInMap>& scans,
         // resume without replay) are not used.
         const bool with_normals = w < normals.size() && normals[w].size() == scan.points_map.size();
         static const std::vector<Eigen::Vector3f> kNone;
+        const bool with_origins = scan.point_origins_map.size() == scan.points_map.size();
         rays_.add_scan_with_normals(scan.origin_map, scan.points_map,
-                                    with_normals ? normals[w] : kNone);
+                                    with_normals ? normals[w] : kNone,
+                                    with_origins ? scan.point_origins_map : kNone);
     }
     // Cut the dead prefix away once it is more than a quarter of the live rays.
     const std::size_t dead = begin_ray();

@@ -8,9 +8,12 @@ ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, Neural
                             bool& origin_set, PreprocessStats& stats, bool voxel_groups) {
     PreprocessStats pre;
     ScanInMap result;
-    const std::vector<Eigen::Vector3f> points_sensor =
-        preprocess_scan(scan.points_sensor, config.preprocess, scan.source, &pre,
-                        voxel_groups ? &result.voxel_begin : nullptr);
+    const bool with_origins = scan.point_origin_sensor.size() == scan.points_sensor.size() &&
+                              !scan.point_origin_sensor.empty();
+    std::vector<std::uint32_t> source_index;
+    const std::vector<Eigen::Vector3f> points_sensor = preprocess_scan(
+        scan.points_sensor, config.preprocess, scan.source, &pre,
+        voxel_groups ? &result.voxel_begin : nullptr, with_origins ? &source_index : nullptr);
     if (!origin_set) {
         sdf.origin_world_m =
             choose_map_origin_world_m(config.origin_world_m, scan.T_world_sensor.translation());
@@ -19,8 +22,16 @@ ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, Neural
     const Eigen::Isometry3d T_map_sensor = map_from_sensor(scan.T_world_sensor, sdf.origin_world_m);
     result.origin_map = T_map_sensor.translation().cast<float>();
     result.points_map = points_in_map_frame(points_sensor, T_map_sensor);
-    const std::size_t cropped = crop_to_world_box(result.points_map, config.crop_world_m,
-                                                  sdf.origin_world_m, &result.voxel_begin);
+    if (with_origins) {
+        std::vector<Eigen::Vector3f> origins_sensor(source_index.size());
+        for (std::size_t k = 0; k < source_index.size(); ++k) {
+            origins_sensor[k] = scan.point_origin_sensor[source_index[k]];
+        }
+        result.point_origins_map = points_in_map_frame(origins_sensor, T_map_sensor);
+    }
+    const std::size_t cropped =
+        crop_to_world_box(result.points_map, config.crop_world_m, sdf.origin_world_m,
+                          &result.voxel_begin, with_origins ? &result.point_origins_map : nullptr);
     pre.dropped_box += cropped;
     pre.output -= cropped;
     stats += pre;

@@ -72,6 +72,10 @@ double deskew_in_place(Scan& scan, const Eigen::Isometry3d& T_prev_cur, double i
         if (std::isfinite(shift)) max_shift_m = std::max(max_shift_m, shift);  // NaN stays NaN
     }
     scan.points_sensor = std::move(moved);
+    // The sensor's position at each point's time, moved the same way: the points' ray origins.
+    scan.point_origin_sensor = deskew_scan_between(
+        std::vector<Eigen::Vector3f>(scan.points_sensor.size(), Eigen::Vector3f::Zero()),
+        scan.point_time_s, T_prev_cur, interval_prev_s, T_cur_next, interval_next_s);
     if (stats.scans_deskewed == 0) stats.time_format = scan.point_time_format;
     ++stats.scans_deskewed;
     stats.max_shift_m = std::max(stats.max_shift_m, max_shift_m);

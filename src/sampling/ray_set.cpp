@@ -11,7 +11,12 @@ namespace shine {
 
 std::uint32_t RaySet::add_scan(const Eigen::Vector3f& origin_map,
                                const std::vector<Eigen::Vector3f>& endpoints_map,
-                               const std::vector<std::uint32_t>& voxel_begin) {
+                               const std::vector<std::uint32_t>& voxel_begin,
+                               const std::vector<Eigen::Vector3f>& ray_origins_map) {
+    if (!ray_origins_map.empty() && ray_origins_map.size() != endpoints_map.size()) {
+        throw DataError("ray origins: got " + std::to_string(ray_origins_map.size()) +
+                        " for a scan of " + std::to_string(endpoints_map.size()) + " rays");
+    }
     if (!voxel_begin.empty()) {
         bool valid = voxel_begin.front() == 0 && voxel_begin.back() < endpoints_map.size();
         for (std::size_t i = 1; valid && i < voxel_begin.size(); ++i) {
@@ -44,18 +49,29 @@ std::uint32_t RaySet::add_scan(const Eigen::Vector3f& origin_map,
     scan_of_ray_.insert(scan_of_ray_.end(), endpoints_map.size(), scan);
     scan_begin_.push_back(endpoints_.size());
     if (!normals_.empty()) normals_.resize(endpoints_.size(), Eigen::Vector3f::Zero());
+    if (!ray_origins_map.empty() && ray_origins_.empty()) {
+        // The first scan with ray origins: every earlier ray gets its scan's.
+        ray_origins_.reserve(endpoints_.size());
+        for (std::size_t r = 0; r < first; ++r) ray_origins_.push_back(origins_[scan_of_ray_[r]]);
+    }
+    if (!ray_origins_map.empty()) {
+        ray_origins_.insert(ray_origins_.end(), ray_origins_map.begin(), ray_origins_map.end());
+    } else if (!ray_origins_.empty()) {
+        ray_origins_.resize(endpoints_.size(), origin_map);
+    }
     return scan;
 }
 
 std::uint32_t RaySet::add_scan_with_normals(const Eigen::Vector3f& origin_map,
                                             const std::vector<Eigen::Vector3f>& endpoints_map,
-                                            const std::vector<Eigen::Vector3f>& normals) {
+                                            const std::vector<Eigen::Vector3f>& normals,
+                                            const std::vector<Eigen::Vector3f>& ray_origins_map) {
     if (!normals.empty() && normals.size() != endpoints_map.size()) {
         throw DataError("ray normals: got " + std::to_string(normals.size()) + " for a scan of " +
                         std::to_string(endpoints_map.size()) + " rays");
     }
     const std::size_t first = endpoints_.size();
-    const std::uint32_t scan = add_scan(origin_map, endpoints_map);
+    const std::uint32_t scan = add_scan(origin_map, endpoints_map, {}, ray_origins_map);
     if (!normals.empty()) {
         normals_.resize(first, Eigen::Vector3f::Zero());  // earlier rays without normals: zero
         normals_.insert(normals_.end(), normals.begin(), normals.end());
@@ -69,6 +85,7 @@ void RaySet::truncate(std::uint32_t num_scans) {
     endpoints_.resize(end);
     scan_of_ray_.resize(end);
     if (!normals_.empty()) normals_.resize(end);
+    if (!ray_origins_.empty()) ray_origins_.resize(end);
     origins_.resize(num_scans);
     scan_begin_.resize(std::size_t{num_scans} + 1);
     if (grouped()) {
@@ -81,6 +98,7 @@ void RaySet::truncate(std::uint32_t num_scans) {
 void RaySet::clear() {
     truncate(0);
     group_begin_.clear();
+    ray_origins_.clear();
 }
 
 void RaySet::erase_front(std::uint32_t num_scans) {
@@ -99,6 +117,7 @@ void RaySet::erase_front(std::uint32_t num_scans) {
     drop_front(scan_of_ray_, first);
     for (std::uint32_t& scan : scan_of_ray_) scan -= num_scans;
     if (!normals_.empty()) drop_front(normals_, first);
+    if (!ray_origins_.empty()) drop_front(ray_origins_, first);
     drop_front(origins_, num_scans);
     drop_front(scan_begin_, num_scans);
     for (std::size_t& b : scan_begin_) b -= first;
@@ -117,6 +136,7 @@ std::size_t RaySet::memory_bytes() const {
            scan_of_ray_.capacity() * sizeof(std::uint32_t) +
            normals_.capacity() * sizeof(Eigen::Vector3f) +
            origins_.capacity() * sizeof(Eigen::Vector3f) +
+           ray_origins_.capacity() * sizeof(Eigen::Vector3f) +
            scan_begin_.capacity() * sizeof(std::size_t) +
            group_begin_.capacity() * sizeof(std::size_t);
 }

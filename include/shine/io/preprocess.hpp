@@ -68,11 +68,13 @@ std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>&
 /// to the centre, ties lexicographic), and `voxel_begin` receives the index where each voxel's
 /// run starts (ascending, the first 0): the runs' first points are exactly the thinned scan.
 /// Otherwise the result is the plain preprocess_scan()'s and `voxel_begin` is cleared (every
-/// point its own group).
+/// point its own group). With `source_index`, it receives for each returned point its index in
+/// `points_sensor` (the returned points are input points, unchanged).
 std::vector<Eigen::Vector3f> preprocess_scan(const std::vector<Eigen::Vector3f>& points_sensor,
                                              const PreprocessConfig& config,
                                              const std::filesystem::path& source,
                                              PreprocessStats* stats,
-                                             std::vector<std::uint32_t>* voxel_begin);
+                                             std::vector<std::uint32_t>* voxel_begin,
+                                             std::vector<std::uint32_t>* source_index = nullptr);
 
 }  // namespace shine

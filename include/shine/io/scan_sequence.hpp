@@ -49,6 +49,10 @@ struct Scan {
     /// PCD or PointCloud2 without a t / time / timestamp / offset_time field; point_times.hpp).
     std::vector<double> point_time_s;
     PointTimeFormat point_time_format;  ///< the field, unit and reference point_time_s came from
+    /// Where the sensor was when it measured each point, in the frame of points_sensor: set when
+    /// a scan is deskewed (its points moved into the sensor frame at the scan's time, while the
+    /// sensor moved during the sweep); empty: at the frame's origin for every point.
+    std::vector<Eigen::Vector3f> point_origin_sensor;
 };
 
 /// Whether a sequence must come with poses.

@@ -20,6 +20,9 @@ struct ScanInMap {
     std::vector<Eigen::Vector3f> points_map;
     /// Where each voxel's run of points starts (voxel_groups.hpp); empty: one point per voxel.
     std::vector<std::uint32_t> voxel_begin;
+    /// Where the sensor was when it measured each point (a deskewed scan,
+    /// Scan::point_origin_sensor), in the map frame; empty: origin_map for every point.
+    std::vector<Eigen::Vector3f> point_origins_map;
 };
 
 /// Preprocesses `scan` with config.preprocess (DataError naming scan.source for invalid points,

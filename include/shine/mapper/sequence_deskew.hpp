@@ -68,7 +68,8 @@ double scan_interval_s(const ScanSequence& sequence, std::size_t a, std::size_t 
 /// Moves scan.points_sensor into the sensor frame at the scan's pose, points before it (t < 0) at
 /// the velocity of T_prev_cur over interval_prev_s, the others at that of T_cur_next over
 /// interval_next_s (odometry/scan_deskew.hpp), and counts it in `stats`; the times are kept.
-/// Returns the largest distance a point moved.
+/// scan.point_origin_sensor becomes the sensor's position at each point's time in that frame
+/// (the rays' origins for training). Returns the largest distance a point moved.
 double deskew_in_place(Scan& scan, const Eigen::Isometry3d& T_prev_cur, double interval_prev_s,
                        const Eigen::Isometry3d& T_cur_next, double interval_next_s,
                        DeskewStats& stats);

@@ -1,5 +1,5 @@
 // The rays a mapper trains on: scan endpoints in the map frame with the sensor origin of their
-// scan.
+// scan, or of each ray where the sensor moved during the sweep (a deskewed scan).
 #pragma once
 
 #include <Eigen/Core>
@@ -19,15 +19,20 @@ class RaySet {
   public:
     /// Adds a scan; returns its index. `voxel_begin` lists where each voxel's run of endpoints
     /// starts (ascending, the first 0; voxel_groups.hpp); empty: every ray its own group.
-    /// Throws DataError for a list that does not describe runs of `endpoints_map`.
+    /// `ray_origins_map` gives each ray its own origin (where the sensor was when it measured
+    /// that point); empty: origin_map for every ray. Throws DataError for a list that does not
+    /// describe runs of `endpoints_map` or a count of ray origins other than 0 or the endpoints'.
     std::uint32_t add_scan(const Eigen::Vector3f& origin_map,
                            const std::vector<Eigen::Vector3f>& endpoints_map,
-                           const std::vector<std::uint32_t>& voxel_begin = {});
-    /// Adds a scan with a normal per endpoint (empty: zero normals); returns its index. Throws
-    /// DataError for a normal count other than 0 or the endpoints'.
+                           const std::vector<std::uint32_t>& voxel_begin = {},
+                           const std::vector<Eigen::Vector3f>& ray_origins_map = {});
+    /// Adds a scan with a normal per endpoint (empty: zero normals) and, optionally, an origin per
+    /// ray as add_scan; returns its index. Throws DataError for a normal count other than 0 or
+    /// the endpoints'.
     std::uint32_t add_scan_with_normals(const Eigen::Vector3f& origin_map,
                                         const std::vector<Eigen::Vector3f>& endpoints_map,
-                                        const std::vector<Eigen::Vector3f>& normals);
+                                        const std::vector<Eigen::Vector3f>& normals,
+                                        const std::vector<Eigen::Vector3f>& ray_origins_map = {});
     /// Keeps the first `num_scans` scans (at most num_scans()) and drops the rest.
     void truncate(std::uint32_t num_scans);
     /// Drops the first `num_scans` scans (at most num_scans()); the later scans and their rays
@@ -38,9 +43,12 @@ class RaySet {
     std::size_t num_rays() const { return endpoints_.size(); }
     std::size_t num_scans() const { return origins_.size(); }
     const Eigen::Vector3f& endpoint(std::size_t ray) const { return endpoints_[ray]; }
+    /// Where ray `ray` starts: its own origin if its scan gave one, else its scan's.
     const Eigen::Vector3f& origin_of_ray(std::size_t ray) const {
-        return origins_[scan_of_ray_[ray]];
+        return ray_origins_.empty() ? origins_[scan_of_ray_[ray]] : ray_origins_[ray];
     }
+    /// True once a scan with an origin per ray was added.
+    bool has_ray_origins() const { return !ray_origins_.empty(); }
     /// Sensor origin of scan s (also of a scan without rays).
     const Eigen::Vector3f& origin_of_scan(std::uint32_t scan) const { return origins_[scan]; }
     std::uint32_t scan_of_ray(std::size_t ray) const { return scan_of_ray_[ray]; }
@@ -77,6 +85,9 @@ class RaySet {
     std::vector<std::uint32_t> scan_of_ray_;
     std::vector<Eigen::Vector3f> normals_;
     std::vector<Eigen::Vector3f> origins_;
+    /// One origin per ray once a scan gave its rays their own (the others: their scan's); empty
+    /// before.
+    std::vector<Eigen::Vector3f> ray_origins_;
     std::vector<std::size_t> scan_begin_{0};
     /// First ray of each group and num_rays() last; empty while no scan is grouped.
     std::vector<std::size_t> group_begin_;
