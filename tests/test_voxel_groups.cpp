@@ -107,7 +107,15 @@ TEST(VoxelGroups, FilterKeepsRunsAndDropsEmptiedOnes) {
                                    }),
               1u);
     EXPECT_EQ(points.size(), 3u);
-    EXPECT_TRUE(ungrouped.empty());
+    EXPECT_TRUE(
+        ungrouped.empty());  // Values per point (a ray origin each, say) follow their points.
+    std::vector<Eigen::Vector3f> values;
+    for (const Eigen::Vector3f& p : points) values.push_back(10.0f * p);
+    EXPECT_EQ(filter_voxel_grouped(
+                  points, ungrouped, [](std::size_t i, std::size_t) { return i != 0; }, &values),
+              1u);
+    ASSERT_EQ(values.size(), points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) EXPECT_EQ(values[i], 10.0f * points[i]);
 }
 
 TEST(VoxelGroups, RaySetKeepsGroupsPerScanAndRejectsBadStarts) {

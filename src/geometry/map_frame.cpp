@@ -39,26 +39,18 @@ std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
                               std::vector<std::uint32_t>* voxel_begin,
                               std::vector<Eigen::Vector3f>* per_point) {
     if (box_world_m.size() != 6) return 0;
-    const bool with_values = per_point != nullptr && per_point->size() == points_map.size();
-    std::size_t kept_values = 0;
     const Eigen::Vector3d lo =
         Eigen::Vector3d(box_world_m[0], box_world_m[1], box_world_m[2]) - origin_world_m;
     const Eigen::Vector3d hi =
         Eigen::Vector3d(box_world_m[3], box_world_m[4], box_world_m[5]) - origin_world_m;
     std::vector<std::uint32_t> ungrouped;
-    const std::size_t removed = filter_voxel_grouped(
+    return filter_voxel_grouped(
         points_map, voxel_begin != nullptr ? *voxel_begin : ungrouped,
         [&](std::size_t i, std::size_t) {
             const Eigen::Vector3d q = points_map[i].cast<double>();
-            const bool keep = (q.array() >= lo.array()).all() && (q.array() < hi.array()).all();
-            // Called once per point, in order: compacted alongside.
-            if (keep && with_values) {
-                (*per_point)[kept_values++] = (*per_point)[i];
-            }
-            return keep;
-        });
-    if (with_values) per_point->resize(kept_values);
-    return removed;
+            return (q.array() >= lo.array()).all() && (q.array() < hi.array()).all();
+        },
+        per_point);
 }
 
 }  // namespace shine

@@ -141,15 +141,8 @@ void BatchMapper::finish_scans() {
         const DynamicObjectStats objects =
             spread_dynamic_to_objects(points, dynamic, config_.dynamic.objects);
         stats_.dynamic_objects += objects.objects_dynamic;
-        if (!origins.empty()) {
-            std::size_t k = 0;
-            for (std::size_t i = 0; i < origins.size(); ++i) {
-                if (!dynamic[i]) origins[k++] = origins[i];
-            }
-            origins.resize(k);
-        }
-        dropped += filter_voxel_grouped(points, voxel_begin,
-                                        [&](std::size_t i, std::size_t) { return !dynamic[i]; });
+        dropped += filter_voxel_grouped(
+            points, voxel_begin, [&](std::size_t i, std::size_t) { return !dynamic[i]; }, &origins);
         kept.add_scan(rays_.origin_of_scan(s), points, voxel_begin, origins);
     }
     rays_ = std::move(kept);

@@ -365,12 +365,11 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     trainer_->set_surface_band_m(consolidation_band_m_);
     // As many rays per step as the scans' steps, with more free-space samples on each.
     const SamplingConfig& scans_sampling = config_.sampling;
-    SamplingConfig sampling = scans_sampling;
-    sampling.free_samples = config_.incremental.consolidation_free_samples;
     const int rays_per_step =
         std::max(1, config_.trainer.batch_size / scans_sampling.samples_per_ray());
-    consolidation_.free_samples = sampling.free_samples;
-    consolidation_.batch_size = rays_per_step * sampling.samples_per_ray();
+    consolidation_.free_samples = config_.incremental.consolidation_free_samples;
+    consolidation_.batch_size =
+        rays_per_step * (scans_sampling.surface_samples + consolidation_.free_samples);
     trainer_->set_free_samples_and_batch_size(consolidation_.free_samples,
                                               consolidation_.batch_size);
     const float lr0 = config_.incremental.consolidation_learning_rate;

@@ -56,6 +56,22 @@ struct Trainer::Partition {
     double regularization = 0.0;
 };
 
+namespace {
+/// Throws ConfigError unless `sampling` draws 1 to kMaxSamplesPerRay samples per ray, none of
+/// its counts negative, and a batch of `batch_size` holds at least one ray.
+void check_samples_per_ray(const SamplingConfig& sampling, int batch_size) {
+    if (batch_size < sampling.samples_per_ray()) {
+        throw ConfigError("batch_size must be at least the samples per ray (" +
+                          std::to_string(sampling.samples_per_ray()) + ")");
+    }
+    if (sampling.samples_per_ray() < 1 || sampling.samples_per_ray() > kMaxSamplesPerRay ||
+        sampling.surface_samples < 0 || sampling.free_samples < 0) {
+        throw ConfigError("samples per ray must be between 1 and " +
+                          std::to_string(kMaxSamplesPerRay));
+    }
+}
+}  // namespace
+
 Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConfig& sampling)
     : sdf_(sdf),
       config_(config),
@@ -64,15 +80,7 @@ Trainer::Trainer(NeuralSdf& sdf, const TrainerConfig& config, const SamplingConf
       decoder_adam_(config.decoder_adam, static_cast<int>(sdf.decoder.num_params())),
       row_state_(sdf.octree.feature_dim(), /*with_anchor=*/false,
                  sdf.octree.feature_precision() == FeaturePrecision::kFloat16) {
-    if (config.batch_size < sampling.samples_per_ray()) {
-        throw ConfigError("batch_size must be at least the samples per ray (" +
-                          std::to_string(sampling.samples_per_ray()) + ")");
-    }
-    if (sampling.samples_per_ray() > kMaxSamplesPerRay || sampling.surface_samples < 0 ||
-        sampling.free_samples < 0) {
-        throw ConfigError("samples per ray must be between 1 and " +
-                          std::to_string(kMaxSamplesPerRay));
-    }
+    check_samples_per_ray(sampling, config.batch_size);
     if (!(config.sigma_m > 0.0f)) throw ConfigError("sigma_m must be positive");
     if (sdf.octree.feature_dim() > kMaxFeatureDim) throw ConfigError("feature_dim too large");
     decoder_grads_.assign(sdf.decoder.num_params(), 0.0f);
@@ -86,15 +94,7 @@ Trainer::~Trainer() = default;
 void Trainer::set_free_samples_and_batch_size(int free_samples, int batch_size) {
     SamplingConfig sampling = sampling_;
     sampling.free_samples = free_samples;
-    if (free_samples < 0 || sampling.samples_per_ray() < 1 ||
-        sampling.samples_per_ray() > kMaxSamplesPerRay) {
-        throw ConfigError("samples per ray must be between 1 and " +
-                          std::to_string(kMaxSamplesPerRay));
-    }
-    if (batch_size < sampling.samples_per_ray()) {
-        throw ConfigError("batch_size must be at least the samples per ray (" +
-                          std::to_string(sampling.samples_per_ray()) + ")");
-    }
+    check_samples_per_ray(sampling, batch_size);
     sampling_.free_samples = free_samples;
     config_.batch_size = batch_size;
 }
