@@ -192,6 +192,7 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
                             {{"steps", mapper.consolidation().steps},
                              {"scans", mapper.consolidation().scans},
                              {"rays", mapper.consolidation().rays},
+                             {"voxels", mapper.consolidation().voxels},
                              {"surface_band_m", mapper.consolidation().surface_band_m},
                              {"learning_rate", inc.consolidation_learning_rate},
                              {"free_samples", mapper.consolidation().free_samples},

@@ -689,3 +689,45 @@ TEST(IncrementalMapper, ConsolidationFreeSamplesCarveWhatLaterScansSawThrough) {
     EXPECT_GT(five.consolidated.mean_m, one.consolidated.mean_m + 0.025);
     EXPECT_LT(five.consolidated.near_share, 0.5 * one.consolidated.near_share);
 }
+
+TEST(IncrementalMapper, ConsolidationOnEveryPointTrainsTheVoxelsTheScansTrainedOn) {
+    // With preprocess.voxel_points all the window keeps every point of its scans, grouped by
+    // voxel behind the point thinning keeps. The scans' own steps train on those points, as with
+    // one point per voxel, and the dynamic filter drops a voxel's points with it: so the
+    // consolidation's voxels are exactly the rays it trains on with one point per voxel.
+    struct Mapped {
+        std::vector<std::size_t> frame_rays;
+        std::size_t dynamic_dropped = 0;
+        ConsolidationStats stats;
+    };
+    const auto map_with = [](VoxelPoints voxel_points) {
+        MapperConfig config;
+        config.preprocess.min_range_m = 0.5;
+        config.preprocess.voxel_downsample_m = 0.1;
+        config.preprocess.voxel_points = voxel_points;
+        config.incremental.batch_size = 2048;
+        IncrementalMapper mapper(config);
+        Mapped out;
+        for (int k = 0; k < 8; ++k) {
+            const IncrementalFrameStats& frame =
+                mapper.add_scan(ground_scan_with_table_at(0.3 * k, k < 2));
+            out.frame_rays.push_back(frame.rays);
+            out.dynamic_dropped += frame.dynamic_dropped + frame.dynamic_forgotten;
+        }
+        out.stats = mapper.consolidate(3);
+        return out;
+    };
+    const Mapped nearest = map_with(VoxelPoints::kNearest);
+    const Mapped all = map_with(VoxelPoints::kAll);
+    EXPECT_EQ(all.frame_rays, nearest.frame_rays);
+    EXPECT_EQ(all.dynamic_dropped, nearest.dynamic_dropped);
+    std::printf(
+        "table scans: %zu points dropped as dynamic; consolidation %zu rays in %zu voxels "
+        "(one point per voxel: %zu rays)\n",
+        all.dynamic_dropped, all.stats.rays, all.stats.voxels, nearest.stats.rays);
+    EXPECT_GT(nearest.dynamic_dropped, 0u);  // the table's points, seen through by later scans
+    EXPECT_EQ(nearest.stats.voxels, nearest.stats.rays);
+    EXPECT_EQ(all.stats.voxels, nearest.stats.rays);
+    EXPECT_EQ(all.stats.scans, nearest.stats.scans);
+    EXPECT_GT(all.stats.rays, all.stats.voxels);
+}

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
+#include <stdexcept>
 
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
@@ -113,6 +115,70 @@ TEST(ScanInMap, DeskewingGivesEachPointTheSensorPositionAtItsTime) {
     }
     EXPECT_NEAR(scan.point_origin_sensor.front().x(), -1.0, 1e-3);  // a sweep earlier
     EXPECT_NEAR(scan.point_origin_sensor.back().x(), 0.0, 1e-3);    // at the scan's time
+}
+
+TEST(ScanInMap, VoxelLeadsAreTheThinnedScanAndRunsDropWithTheirLeads) {
+    // 20 000 random points, each with its own origin, in 0.5 m voxels: the leads of the grouped
+    // scan are the thinned scan point for point; dropping runs by flag keeps the other runs whole
+    // and in order, with their origins.
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> coordinate(-3.0f, 3.0f);
+    Scan scan;
+    scan.source = "random";
+    scan.T_world_sensor.translation() = Eigen::Vector3d(1000.3, -20.7, 1.1);
+    for (int i = 0; i < 20000; ++i) {
+        scan.points_sensor.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+        scan.point_origin_sensor.emplace_back(0.001f * static_cast<float>(i), 0.0f, 0.0f);
+    }
+    MapperConfig config;
+    config.preprocess.min_range_m = 0.5;
+    config.preprocess.voxel_downsample_m = 0.5;
+    config.preprocess.voxel_points = VoxelPoints::kAll;
+    NeuralSdf sdf(config.octree, config.decoder);
+    bool origin_set = false;
+    PreprocessStats stats;
+    const ScanInMap thinned = scan_in_map_frame(scan, config, sdf, origin_set, stats, false);
+    ScanInMap grouped = scan_in_map_frame(scan, config, sdf, origin_set, stats, true);
+    ASSERT_EQ(grouped.voxel_begin.size(), thinned.points_map.size());
+    ASSERT_GT(grouped.points_map.size(), 3 * thinned.points_map.size());
+    const ScanInMap leads = voxel_leads(grouped);
+    EXPECT_TRUE(leads.voxel_begin.empty());
+    EXPECT_EQ(leads.origin_map, thinned.origin_map);
+    EXPECT_EQ(leads.points_map, thinned.points_map);
+    EXPECT_EQ(leads.point_origins_map, thinned.point_origins_map);
+
+    // Drop every third run.
+    std::vector<std::uint8_t> drop(grouped.voxel_begin.size());
+    for (std::size_t r = 0; r < drop.size(); r += 3) drop[r] = 1;
+    std::vector<Eigen::Vector3f> expected_points, expected_origins;
+    std::vector<std::uint32_t> expected_begin;
+    for (std::size_t r = 0; r < drop.size(); ++r) {
+        if (drop[r]) continue;
+        const std::size_t end =
+            r + 1 < drop.size() ? grouped.voxel_begin[r + 1] : grouped.points_map.size();
+        expected_begin.push_back(static_cast<std::uint32_t>(expected_points.size()));
+        for (std::size_t i = grouped.voxel_begin[r]; i < end; ++i) {
+            expected_points.push_back(grouped.points_map[i]);
+            expected_origins.push_back(grouped.point_origins_map[i]);
+        }
+    }
+    const std::size_t before = grouped.points_map.size();
+    EXPECT_EQ(drop_voxel_runs(grouped, drop), before - expected_points.size());
+    EXPECT_EQ(grouped.points_map, expected_points);
+    EXPECT_EQ(grouped.point_origins_map, expected_origins);
+    EXPECT_EQ(grouped.voxel_begin, expected_begin);
+    // The leads that are left are the thinned points whose runs were kept.
+    const ScanInMap left = voxel_leads(grouped);
+    std::size_t k = 0;
+    for (std::size_t r = 0; r < drop.size(); ++r) {
+        if (drop[r]) continue;
+        ASSERT_LT(k, left.points_map.size());
+        EXPECT_EQ(left.points_map[k], thinned.points_map[r]);
+        EXPECT_EQ(left.point_origins_map[k], thinned.point_origins_map[r]);
+        ++k;
+    }
+    EXPECT_EQ(k, left.points_map.size());
+    EXPECT_THROW(drop_voxel_runs(grouped, drop), std::invalid_argument);  // a flag per old run
 }
 
 }  // namespace

@@ -212,6 +212,7 @@ class NeuralMap {
         out["rays"] = c.rays;
         out["surface_band_m"] = c.surface_band_m;
         out["free_samples"] = c.free_samples;
+        out["voxels"] = c.voxels;
         out["batch_size"] = c.batch_size;
         out["seconds"] = c.seconds;
         out["bce"] = c.bce;

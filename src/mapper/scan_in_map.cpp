@@ -1,6 +1,10 @@
 #include "shine/mapper/scan_in_map.hpp"
 
+#include <stdexcept>
+#include <string>
+
 #include "shine/geometry/map_frame.hpp"
+#include "shine/geometry/voxel_groups.hpp"
 
 namespace shine {
 
@@ -36,6 +40,32 @@ ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, Neural
     pre.output -= cropped;
     stats += pre;
     return result;
+}
+
+ScanInMap voxel_leads(const ScanInMap& grouped) {
+    if (grouped.voxel_begin.empty()) return grouped;
+    ScanInMap leads;
+    leads.origin_map = grouped.origin_map;
+    const bool with_origins = grouped.point_origins_map.size() == grouped.points_map.size();
+    leads.points_map.reserve(grouped.voxel_begin.size());
+    if (with_origins) leads.point_origins_map.reserve(grouped.voxel_begin.size());
+    for (const std::uint32_t first : grouped.voxel_begin) {
+        leads.points_map.push_back(grouped.points_map[first]);
+        if (with_origins) leads.point_origins_map.push_back(grouped.point_origins_map[first]);
+    }
+    return leads;
+}
+
+std::size_t drop_voxel_runs(ScanInMap& grouped, const std::vector<std::uint8_t>& drop) {
+    const std::size_t runs =
+        grouped.voxel_begin.empty() ? grouped.points_map.size() : grouped.voxel_begin.size();
+    if (drop.size() != runs) {
+        throw std::invalid_argument("drop_voxel_runs: " + std::to_string(drop.size()) +
+                                    " flags for " + std::to_string(runs) + " runs");
+    }
+    return filter_voxel_grouped(
+        grouped.points_map, grouped.voxel_begin,
+        [&](std::size_t, std::size_t run) { return drop[run] == 0; }, &grouped.point_origins_map);
 }
 
 }  // namespace shine

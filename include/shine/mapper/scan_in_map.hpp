@@ -33,4 +33,14 @@ struct ScanInMap {
 ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, NeuralSdf& sdf,
                             bool& origin_set, PreprocessStats& stats, bool voxel_groups = false);
 
+/// The scan as thinning keeps it, from a scan grouped by voxel: the first point of each voxel's
+/// run (with its origin), which is the point preprocess_scan() keeps when it thins. A scan
+/// without voxel_begin is returned as it is.
+ScanInMap voxel_leads(const ScanInMap& grouped);
+
+/// Drops the voxel runs `grouped` whose flag is nonzero (one flag per run: per point when not
+/// grouped), with their points and origins; returns the number of points dropped. Throws
+/// std::invalid_argument for a flag count other than the number of runs.
+std::size_t drop_voxel_runs(ScanInMap& grouped, const std::vector<std::uint8_t>& drop);
+
 }  // namespace shine
