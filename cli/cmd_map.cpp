@@ -245,6 +245,7 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
                         {"sdf_kernel_scale_m", c.sdf_kernel_scale_m},
                         {"icp_kernel_scale_m", c.icp_kernel_scale_m},
                         {"estimate_sweep", c.estimate_sweep},
+                        {"sweep_prior_centre", c.sweep_prior_from_poses ? "poses" : "prediction"},
                         {"counts", counts},
                         {"median_seconds_per_scan", median(scan_seconds)},
                         {"median_registration_seconds", median(registration_seconds)},

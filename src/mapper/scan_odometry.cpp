@@ -179,6 +179,9 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
         sweep.twist_prior = se3_log(sweep_prior->T_expected);
         sweep.prior_sigma_translation_m = config_.sweep_prior_translation_m;
         sweep.prior_sigma_rotation_rad = config_.sweep_prior_rotation_deg * M_PI / 180.0;
+        if (config_.sweep_prior_from_poses && !poses_.empty()) {
+            sweep.T_world_previous = poses_.back();
+        }
         sweep.fractions.resize(selected.size());
         for (std::size_t j = 0; j < selected.size(); ++j) {
             sweep.fractions[j] =

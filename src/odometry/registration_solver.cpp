@@ -209,13 +209,38 @@ Vector6d sweep_prior_weights(const SweepModel& sweep, const RobustKernel& kernel
     return w;
 }
 
-/// Adds Eq. (4) at `sweep_twist` to the 12-unknown sums.
-void add_sweep_prior(NormalEquationsOf<12>& eq, const SweepModel& sweep, const Vector6d& weights,
-                     const Vector6d& sweep_twist) {
-    const Vector6d d = sweep_twist - sweep.twist_prior;
+/// Adds Eq. (4) at `sweep_twist` and pose T to the 12-unknown sums; returns what it added to the
+/// pose block of H (zero unless xi_0 follows the pose, Eq. (5)).
+Matrix6d add_sweep_prior(NormalEquationsOf<12>& eq, const SweepModel& sweep,
+                         const Vector6d& weights, const Eigen::Isometry3d& T,
+                         const Vector6d& sweep_twist) {
+    if (!sweep.T_world_previous) {
+        const Vector6d d = sweep_twist - sweep.twist_prior;
+        eq.H.bottomRightCorner<6, 6>().diagonal() += weights;
+        eq.b.tail<6>() += weights.cwiseProduct(d);
+        eq.cost += 0.5 * d.dot(weights.cwiseProduct(d));
+        return Matrix6d::Zero();
+    }
+    // Eq. (5): d = xi - log(T_p^-1 T); its Jacobian is [-D, I] in (delta, epsilon).
+    const Eigen::Isometry3d motion = sweep.T_world_previous->inverse() * T;
+    const Vector6d d = sweep_twist - se3_log(motion);
+    constexpr double kStep = 1e-6;
+    Matrix6d D;
+    for (int k = 0; k < 6; ++k) {
+        Vector6d e = Vector6d::Zero();
+        e[k] = kStep;
+        D.col(k) = (se3_log(motion * se3_exp(e)) - se3_log(motion * se3_exp(-e))) / (2.0 * kStep);
+    }
+    const auto W = weights.asDiagonal();
+    const Matrix6d pose_block = D.transpose() * W * D;
+    eq.H.topLeftCorner<6, 6>() += pose_block;
+    eq.H.topRightCorner<6, 6>() -= D.transpose() * W;
+    eq.H.bottomLeftCorner<6, 6>() -= W * D;
     eq.H.bottomRightCorner<6, 6>().diagonal() += weights;
+    eq.b.head<6>() -= D.transpose() * weights.cwiseProduct(d);
     eq.b.tail<6>() += weights.cwiseProduct(d);
     eq.cost += 0.5 * d.dot(weights.cwiseProduct(d));
+    return pose_block;
 }
 
 }  // namespace
@@ -264,15 +289,17 @@ RegistrationResult solve(const std::vector<Eigen::Vector3f>& points_sensor,
         twist = sweep->twist_prior;
     }
     result.sweep_twist = twist;
-    const auto build = [&](const Eigen::Isometry3d& T, const Vector6d& xi) {
+    // What the prior added to the pose block of the current iterate's H (Eq. (5)).
+    Matrix6d prior_pose_block = Matrix6d::Zero();
+    const auto build = [&](const Eigen::Isometry3d& T, const Vector6d& xi, Matrix6d& prior_block) {
         NormalEquationsOf<N> eq =
             build_equations<N>(points_sensor, T, residuals, config.kernel, sweep, xi);
-        if constexpr (N == 12) add_sweep_prior(eq, *sweep, prior_weights, xi);
+        if constexpr (N == 12) prior_block = add_sweep_prior(eq, *sweep, prior_weights, T, xi);
         return eq;
     };
 
     Eigen::Isometry3d T = T_world_sensor_initial;
-    NormalEquationsOf<N> eq = build(T, twist);
+    NormalEquationsOf<N> eq = build(T, twist, prior_pose_block);
     result.initial_cost = eq.cost;
     const auto finish = [&](RegistrationStatus status) {
         result.T_world_sensor_solved = T;
@@ -280,8 +307,8 @@ RegistrationResult solve(const std::vector<Eigen::Vector3f>& points_sensor,
         result.num_valid_points = eq.num_valid;
         const double range_m =
             eq.num_valid > 0 ? std::sqrt(eq.sum_range_sq_m2 / double(eq.num_valid)) : 0.0;
-        result.condition_number =
-            scaled_condition_number(eq.H.template topLeftCorner<6, 6>(), range_m);
+        result.condition_number = scaled_condition_number(
+            Matrix6d(eq.H.template topLeftCorner<6, 6>() - prior_pose_block), range_m);
         if (status == RegistrationStatus::kConverged &&
             !(result.condition_number <= config.max_condition_number)) {
             status = RegistrationStatus::kIllConditioned;
@@ -321,12 +348,14 @@ RegistrationResult solve(const std::vector<Eigen::Vector3f>& points_sensor,
         Vector6d twist_trial = twist;
         if constexpr (N == 12) twist_trial += step.template tail<6>();
         NormalEquationsOf<N> trial;
-        if (step.allFinite()) trial = build(T_trial, twist_trial);
+        Matrix6d trial_prior_block = Matrix6d::Zero();
+        if (step.allFinite()) trial = build(T_trial, twist_trial, trial_prior_block);
         const bool descent = step.allFinite() && trial.num_valid > 0 && trial.cost <= eq.cost;
         if (descent) {
             T = T_trial;
             twist = twist_trial;
             eq = std::move(trial);
+            prior_pose_block = trial_prior_block;
             lambda = std::max(lambda * 0.1, 1e-12);
         } else {
             lambda = std::max(lambda * 10.0, 1e-6);

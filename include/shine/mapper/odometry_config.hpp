@@ -72,6 +72,14 @@ struct OdometryConfig {
     /// scan interval: how far the velocity may change from one scan to the next.
     double sweep_prior_translation_m = 0.01;
     double sweep_prior_rotation_deg = 0.1;
+    /// The prior's centre (registration_solver.hpp, Eq. (4)-(5)). true ("poses"): the motion
+    /// from the previous scan's pose to the pose being solved, one interval's motion for both (the
+    /// sweep begins at the previous pose where the pose is the sweep's end, CT-ICP's location
+    /// consistency; where it is the sweep's start, the last interval's motion). false
+    /// ("prediction"): the constant-velocity prediction's motion, one interval older. On the
+    /// distorted streets "poses" lowers the ATE 3.2 -> 2.9 and 4.0 -> 2.7 mm and the rotation
+    /// drift by a fifth; the F-scores stay within 0.03 point (docs/odometry.md).
+    bool sweep_prior_from_poses = true;
     /// Scans with fewer registration points are not mapped (a warning; their pose is the
     /// prediction).
     int min_scan_points = 100;

@@ -28,7 +28,12 @@
 // xi_0 (the constant-velocity prediction's), adding to E
 //   1/2 sum_j (s_kernel / sigma_j)^2 (xi_j - xi_0,j)^2                                  (4)
 // as if the residuals had the kernel's scale for a standard deviation: over thousands of points it
-// matters only where the data leave the motion unconstrained.
+// matters only where the data leave the motion unconstrained. Given the previous scan's pose T_p,
+// xi_0 follows the pose being solved instead,
+//   xi_0(T) = log(T_p^-1 T),   D = d xi_0(T exp(delta)) / d delta (central differences)    (5)
+// so that sweep and poses tell one motion (CT-ICP's location consistency where the pose is the
+// sweep's end): the prior's Jacobian is [-D, I] in (delta, epsilon). The condition number of the
+// registration is still taken on the points' part of H alone.
 //
 // Success needs three things, reported separately in RegistrationResult: enough points with a
 // residual, a well-conditioned H at the solution (its condition number after scaling the rotation
@@ -43,6 +48,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -90,6 +96,10 @@ struct SweepModel {
     Vector6d twist_prior = Vector6d::Zero();
     double prior_sigma_translation_m = 0.05;  ///< sigma_j of Eq. (4) for rho
     double prior_sigma_rotation_rad = 0.01;   ///< sigma_j of Eq. (4) for phi
+    /// When set, Eq. (4)'s xi_0 is not twist_prior but the motion from this pose (the previous
+    /// scan's, one interval earlier) to the pose being solved, log(T_previous^-1 T) (Eq. (5)).
+    /// The sweep still starts at twist_prior.
+    std::optional<Eigen::Isometry3d> T_world_previous;
 };
 
 /// Why a registration stopped.
