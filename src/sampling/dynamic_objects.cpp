@@ -178,6 +178,15 @@ ScanObjects find_scan_objects(const std::vector<Eigen::Vector3f>& points_map,
     return result;
 }
 
+namespace {
+/// True when no object can become dynamic: spreading is off or no point is dynamic.
+bool nothing_to_spread(const std::vector<std::uint8_t>& dynamic,
+                       const DynamicObjectConfig& config) {
+    return config.min_dynamic_share <= 0.0f ||
+           std::none_of(dynamic.begin(), dynamic.end(), [](std::uint8_t d) { return d != 0; });
+}
+}  // namespace
+
 DynamicObjectStats spread_dynamic_to_objects(const ScanObjects& objects,
                                              std::vector<std::uint8_t>& dynamic,
                                              const DynamicObjectConfig& config) {
@@ -188,10 +197,7 @@ DynamicObjectStats spread_dynamic_to_objects(const ScanObjects& objects,
                         std::to_string(objects.object_of.size()) + " points");
     }
     DynamicObjectStats stats;
-    if (config.min_dynamic_share <= 0.0f ||
-        std::none_of(dynamic.begin(), dynamic.end(), [](std::uint8_t d) { return d != 0; })) {
-        return stats;
-    }
+    if (nothing_to_spread(dynamic, config)) return stats;
     stats.objects = objects.num_objects;
     std::vector<std::size_t> points(objects.num_objects, 0), moving(objects.num_objects, 0);
     for (std::size_t i = 0; i < dynamic.size(); ++i) {
@@ -224,10 +230,7 @@ DynamicObjectStats spread_dynamic_to_objects(const std::vector<Eigen::Vector3f>&
         throw DataError("dynamic objects: " + std::to_string(dynamic.size()) + " flags for " +
                         std::to_string(points_map.size()) + " points");
     }
-    if (config.min_dynamic_share <= 0.0f ||
-        std::none_of(dynamic.begin(), dynamic.end(), [](std::uint8_t d) { return d != 0; })) {
-        return {};
-    }
+    if (nothing_to_spread(dynamic, config)) return {};  // no segmentation needed
     return spread_dynamic_to_objects(find_scan_objects(points_map, config), dynamic, config);
 }
 
