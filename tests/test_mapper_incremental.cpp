@@ -617,6 +617,14 @@ Scan ground_scan_with_table_at(double x, bool with_table) {
     return scan;
 }
 
+/// The configuration the table scans are mapped with: points from 0.5 m, 2048 samples a step.
+MapperConfig table_scene_config() {
+    MapperConfig config;
+    config.preprocess.min_range_m = 0.5;
+    config.incremental.batch_size = 2048;
+    return config;
+}
+
 struct TableSdf {
     double mean_m = 0.0;      ///< 0.5 m where the table is gone (the ground is 0.5 m below)
     double near_share = 0.0;  ///< of the places with SDF under 0.25 m: nearer the table's top
@@ -658,9 +666,7 @@ TEST(IncrementalMapper, ConsolidationFreeSamplesCarveWhatLaterScansSawThrough) {
         ConsolidationStats stats;
     };
     const auto map_with = [](int consolidation_free_samples) {
-        MapperConfig config;
-        config.preprocess.min_range_m = 0.5;
-        config.incremental.batch_size = 2048;
+        MapperConfig config = table_scene_config();
         config.incremental.consolidation_free_samples = consolidation_free_samples;
         IncrementalMapper mapper(config);
         for (int k = 0; k < 8; ++k) mapper.add_scan(ground_scan_with_table_at(0.3 * k, k < 2));
@@ -701,11 +707,9 @@ TEST(IncrementalMapper, ConsolidationOnEveryPointTrainsTheVoxelsTheScansTrainedO
         ConsolidationStats stats;
     };
     const auto map_with = [](VoxelPoints voxel_points) {
-        MapperConfig config;
-        config.preprocess.min_range_m = 0.5;
+        MapperConfig config = table_scene_config();
         config.preprocess.voxel_downsample_m = 0.1;
         config.preprocess.voxel_points = voxel_points;
-        config.incremental.batch_size = 2048;
         IncrementalMapper mapper(config);
         Mapped out;
         for (int k = 0; k < 8; ++k) {

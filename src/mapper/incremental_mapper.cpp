@@ -393,12 +393,21 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     if (steps == 0 || window_.empty()) return consolidation_;
     // The kept scans: every point of each, grouped by voxel, or the points their steps used.
     RaySet every_point;
-    if (!window_members_.empty()) every_point = kept_scans_every_point();
-    if (window_members_.empty()) sync_replay_rays(0);  // after a resume: assembled here
-    const RaySet& rays = window_members_.empty() ? replay_.rays() : every_point;
-    const std::size_t ray_begin = window_members_.empty() ? replay_.begin_ray() : 0;
+    const RaySet* kept_rays = &every_point;
+    std::size_t ray_begin = 0;
+    std::size_t kept_scans = 0;
+    if (window_members_.empty()) {
+        sync_replay_rays(0);  // after a resume at the end of the sequence: assembled here
+        kept_rays = &replay_.rays();
+        ray_begin = replay_.begin_ray();
+        kept_scans = replay_.live_scans();
+    } else {
+        every_point = kept_scans_every_point();
+        kept_scans = every_point.num_scans();
+    }
+    const RaySet& rays = *kept_rays;
     if (rays.num_rays() == ray_begin) return consolidation_;
-    consolidation_.scans = window_members_.empty() ? replay_.live_scans() : every_point.num_scans();
+    consolidation_.scans = kept_scans;
     consolidation_.rays = rays.num_rays() - ray_begin;
     consolidation_.voxels =
         rays.group_at_or_after(rays.num_rays()) - rays.group_at_or_after(ray_begin);
