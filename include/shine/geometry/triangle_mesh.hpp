@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <vector>
 
@@ -33,6 +34,18 @@ inline TriangleMesh in_frame(const TriangleMesh& mesh, const Eigen::Vector3d& or
     const Eigen::Vector3d shift_m = mesh.origin_world_m - origin_world_m;
     for (Eigen::Vector3f& v : moved.vertices) v = (v.cast<double>() + shift_m).cast<float>();
     moved.origin_world_m = origin_world_m;
+    return moved;
+}
+
+/// `mesh` moved rigidly in the world: every vertex's world position x becomes T_world * x. The
+/// mesh keeps its frame (origin_world_m); the move is computed in double about the world origin,
+/// as T_world says, so a far-away (UTM) mesh keeps its float precision.
+inline TriangleMesh moved_in_world(const TriangleMesh& mesh, const Eigen::Isometry3d& T_world) {
+    TriangleMesh moved = mesh;
+    const Eigen::Vector3d& origin = mesh.origin_world_m;
+    for (Eigen::Vector3f& v : moved.vertices) {
+        v = (T_world * (origin + v.cast<double>()) - origin).cast<float>();
+    }
     return moved;
 }
 
