@@ -3,6 +3,7 @@
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <chrono>
@@ -260,19 +261,29 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     const DynamicPointConfig& dynamic = config_.dynamic;
     const Eigen::Isometry3f T_sensor_map =
         map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m).inverse().cast<float>();
-    RangeImage image(scan.points_sensor);
-    image.prepare_window(dynamic.window_bins);  // asked for the points of many scans
-    // The scan's own points, voted on by the scans before it.
+    // Three independent steps, side by side (the objects' search is serial): the scan's range
+    // image, with which it votes on the points of the scans before it; the scan's own points,
+    // voted on by the scans before it; and the scan's compact objects (dynamic_objects.hpp),
+    // over which each point's own votes are spread and which the scan keeps while the scans
+    // after it vote on its points.
+    RangeImage image;
     std::vector<FreeSpaceVotes> votes(current.points_map.size());
-    if (!votes.empty()) {
-        for (const auto& [T_past_map, past_image] : voters_) {
-            add_free_space_votes(past_image, T_past_map, current.points_map.data(),
-                                 current.points_map.size(), dynamic, votes.data());
-        }
-    }
-    // Each point's own votes, spread over the compact objects of its scan (dynamic_objects.hpp),
-    // which the scan keeps while the scans after it vote on its points.
     const bool objects = dynamic.objects.min_dynamic_share > 0.0f;
+    tbb::parallel_invoke(
+        [&] {
+            image = RangeImage(scan.points_sensor);
+            image.prepare_window(dynamic.window_bins);  // asked for the points of many scans
+        },
+        [&] {
+            if (votes.empty()) return;
+            for (const auto& [T_past_map, past_image] : voters_) {
+                add_free_space_votes(past_image, T_past_map, current.points_map.data(),
+                                     current.points_map.size(), dynamic, votes.data());
+            }
+        },
+        [&] {
+            if (objects) current_objects_ = find_scan_objects(current.points_map, dynamic.objects);
+        });
     const auto dynamic_flags = [&](const ScanObjects* scan_objects,
                                    const std::vector<FreeSpaceVotes>& point_votes) {
         std::vector<std::uint8_t> flags(point_votes.size());
@@ -285,7 +296,6 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
         }
         return flags;
     };
-    if (objects) current_objects_ = find_scan_objects(current.points_map, dynamic.objects);
     const std::vector<std::uint8_t> current_dynamic =
         dynamic_flags(objects ? &current_objects_ : nullptr, votes);
     if (current_members) drop_voxel_runs(*current_members, current_dynamic);
