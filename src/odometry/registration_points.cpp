@@ -1,11 +1,13 @@
 // Range window and voxel thinning of the points registration uses.
 #include "shine/odometry/registration_points.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <unordered_set>
+#include <unordered_map>
 
 #include "shine/core/error.hpp"
+#include "shine/core/random.hpp"
 
 namespace shine {
 
@@ -41,18 +43,31 @@ std::vector<std::size_t> select_registration_point_indices(
     const double min_sq = config.min_range_m * config.min_range_m;
     const double max_sq = config.max_range_m * config.max_range_m;
     std::vector<std::size_t> out;
-    std::unordered_set<std::uint64_t> occupied;
+    // Per voxel, the point whose index has the smallest hash: a draw independent of where the
+    // point lies in the voxel or in the scan (header).
+    struct Drawn {
+        std::uint64_t rank;
+        std::size_t index;
+    };
+    std::unordered_map<std::uint64_t, Drawn> drawn;
     for (std::size_t i = 0; i < points_sensor.size(); ++i) {
         const Eigen::Vector3f& p = points_sensor[i];
         if (!p.allFinite()) continue;
         const double r2 = p.cast<double>().squaredNorm();
         if (r2 < min_sq || r2 > max_sq) continue;
-        if (config.voxel_size_m > 0.0 &&
-            !occupied.insert(registration_points_internal::voxel_key(p, config.voxel_size_m))
-                 .second) {
+        if (config.voxel_size_m <= 0.0) {
+            out.push_back(i);
             continue;
         }
-        out.push_back(i);
+        const Drawn candidate{mix_seed(i), i};
+        const auto [it, inserted] = drawn.try_emplace(
+            registration_points_internal::voxel_key(p, config.voxel_size_m), candidate);
+        if (!inserted && candidate.rank < it->second.rank) it->second = candidate;
+    }
+    if (config.voxel_size_m > 0.0) {
+        out.reserve(drawn.size());
+        for (const auto& [key, chosen] : drawn) out.push_back(chosen.index);
+        std::sort(out.begin(), out.end());
     }
     return out;
 }
