@@ -274,7 +274,6 @@ nlohmann::json deskew_to_json(const DeskewConfig& config, const DeskewStats& sta
     return json;
 }
 
-/// The stage profile: per stage the median over frames and the run total, plus per frame.
 /// With estimated poses and a sequence that has poses of its own: the mesh scored again after the
 /// SE(3) alignment of the registered scans' estimated poses to the data's (Umeyama over their
 /// positions and axes), so that the estimate's drift against the data's frame and the map's own
@@ -333,6 +332,7 @@ void evaluate_aligned_to_data_poses(const TriangleMesh& mesh, const TriangleMesh
         scans, rotation_deg, alignment.t.norm(), format_metrics(aligned).c_str());
 }
 
+/// The stage profile: per stage the median over frames and the run total, plus per frame.
 nlohmann::json profile_to_json(const StageProfile& profile) {
     const StageSeconds medians = profile.frame_medians();
     const StageSeconds totals = profile.totals();
