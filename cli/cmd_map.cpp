@@ -204,18 +204,15 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
                            {"progress_meshes", meshes}};
 }
 
-/// The odometry's per-scan records and a summary (seconds per scan: odometry plus mapping).
+/// The odometry's per-scan records and a summary (seconds per scan: odometry plus mapping, wall
+/// clock from the scan's load to the end of its mapping).
 void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& json) {
     const ScanOdometry& odometry = *mapped.odometry;
-    const std::vector<IncrementalFrameStats>& frames = mapped.mapper->frames();
     nlohmann::json scans = nlohmann::json::array();
-    std::vector<double> scan_seconds, registration_seconds;
+    std::vector<double> registration_seconds;
     std::map<std::string, int> counts;
-    for (std::size_t i = 0, f = 0; i < odometry.records().size(); ++i) {
+    for (std::size_t i = 0; i < odometry.records().size(); ++i) {
         const OdometryRecord& r = odometry.records()[i];
-        double seconds = r.seconds;
-        if (odometry.mapped(i) && f < frames.size()) seconds += frames[f++].total_seconds;
-        scan_seconds.push_back(seconds);
         if (r.tried != RegistrationMethod::kNone) registration_seconds.push_back(r.seconds);
         ++counts[to_string(r.source)];
         scans.push_back(
@@ -248,7 +245,7 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
                         {"estimate_sweep", c.estimate_sweep},
                         {"sweep_prior_centre", c.sweep_prior_from_poses ? "poses" : "prediction"},
                         {"counts", counts},
-                        {"median_seconds_per_scan", median(scan_seconds)},
+                        {"median_seconds_per_scan", median(mapped.scan_wall_seconds)},
                         {"median_registration_seconds", median(registration_seconds)},
                         {"scans", scans}};
 }

@@ -1,6 +1,7 @@
 #include "shine/mapper/incremental_sequence.hpp"
 
 #include <tbb/global_control.h>
+#include <tbb/parallel_invoke.h>
 
 #include <chrono>
 #include <cstdio>
@@ -230,8 +231,16 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
                              config.odometry.min_scan_points);
                 progress.update(i + 1, "skipped");
             } else {
-                const IncrementalFrameStats& frame = mapper.add_scan(scan);
-                if (result.odometry) result.odometry->remember_scan(scan);
+                // The scan joins the odometry's ICP reference while the map trains on it: the
+                // two share nothing, and the next scan needs both.
+                const IncrementalFrameStats* mapped = nullptr;
+                if (result.odometry) {
+                    tbb::parallel_invoke([&] { mapped = &mapper.add_scan(scan); },
+                                         [&] { result.odometry->remember_scan(scan); });
+                } else {
+                    mapped = &mapper.add_scan(scan);
+                }
+                const IncrementalFrameStats& frame = *mapped;
                 StageSeconds stages = frame.stages;
                 stages[Stage::kLoad] = load_seconds;
                 result.profile.frames.push_back(stages);
@@ -248,6 +257,7 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
                 }
                 progress.update(i + 1, detail);
             }
+            result.scan_wall_seconds.push_back(seconds_since(t_load));
             const bool last = i + 1 == sequence.size();
             if (mesh_every > 0 && ((i + 1) % static_cast<std::size_t>(mesh_every) == 0) && !last) {
                 ProgressMesh snapshot;

@@ -45,6 +45,9 @@ struct IncrementalSequenceMap {
     /// the final products once (progress meshes are not counted).
     StageProfile profile;
     DeskewStats deskew;  ///< what deskewing did (config.deskew, sequence_deskew.hpp)
+    /// Wall-clock seconds of each scan this run went through, from its load to the end of its
+    /// mapping (odometry, deskew and mapping included; a resumed run's replayed scans are not).
+    std::vector<double> scan_wall_seconds;
 };
 
 /// Maps every scan of `sequence` in incremental mode with `config` (finalized here) and writes the
