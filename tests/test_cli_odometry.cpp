@@ -152,6 +152,24 @@ TEST(OdometryCli, ScanWithoutPointsIsSkippedWithAWarning) {
     EXPECT_EQ(stats.at("frames").get<int>(), kScans - 1);
 }
 
+TEST(OdometryCli, ACorruptScanEndsTheRunAtItsTurnNamingItAndWritingNothing) {
+    // Scan 5 is read while the map still trains on scan 4: its error must still end the run
+    // with its name, and no product may be written.
+    const fs::path data = street_copy("corrupt_scan");
+    {
+        std::ofstream out(data / "velodyne" / "000005.bin", std::ios::binary | std::ios::trunc);
+        out << "0123456789";  // 10 bytes: not a whole number of 16-byte points
+    }
+    const fs::path out = test_dir() / "corrupt_scan_out";
+    fs::remove_all(out);
+    const CliResult r = run(map_args(data, out, "--poses estimate"));
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("000005.bin"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out / "map.vdb"));
+    EXPECT_FALSE(fs::exists(out / "mesh.ply"));
+    EXPECT_FALSE(fs::exists(out / "poses.txt"));
+}
+
 TEST(OdometryCli, StoppedRunResumesToTheSamePoses) {
     const fs::path reference = test_dir() / "resume_reference";
     fs::remove_all(reference);

@@ -308,3 +308,39 @@ TEST(ScanOdometry, YawHypothesesFindATurnTheLocalRegistrationMisses) {
     EXPECT_LT(found_m, kTranslationTolM);
     EXPECT_LT(found_rad, kRotationTolRad);
 }
+
+TEST(ScanOdometry, PreparedAheadAndFinishedIsEstimateBitForBit) {
+    // The mapper prepares scan k + 1 while the map trains on scan k, then finishes it: the same
+    // poses and records as estimate(), and a prepared scan that another pose overtook is refused.
+    OdometryConfig config;
+    config.icp_warmup_scans = 0;  // ICP, then the registration to the map (here without cells)
+    const NeuralSdf map = empty_map();
+    Vector6d xi;
+    xi << 0.3, 0.2, 0.0, 0.0, 0.0, -0.03;
+    const Scan first = room_scan(Eigen::Isometry3d::Identity());
+    const Scan second = room_scan(se3_exp(xi));
+    const Scan third = room_scan(se3_exp(2.0 * xi));
+
+    ScanOdometry whole(config), parts(config);
+    for (const Scan* scan : {&first, &second, &third}) {
+        whole.estimate(*scan, map);
+        whole.remember_scan(*scan);
+        PreparedScan prepared = parts.prepare(*scan);
+        parts.finish(std::move(prepared), map);
+        parts.remember_scan(*scan);
+    }
+    ASSERT_EQ(parts.poses().size(), 3u);
+    for (std::size_t i = 0; i < 3; ++i) {
+        EXPECT_TRUE(parts.poses()[i].matrix() == whole.poses()[i].matrix()) << "scan " << i;
+        EXPECT_EQ(parts.records()[i].source, whole.records()[i].source) << "scan " << i;
+        EXPECT_EQ(parts.records()[i].iterations, whole.records()[i].iterations) << "scan " << i;
+        EXPECT_EQ(parts.records()[i].icp_inlier_ratio, whole.records()[i].icp_inlier_ratio);
+    }
+    EXPECT_EQ(parts.records()[2].source, PoseSource::kIcp);
+
+    // Prepared as the fourth scan, but a fourth pose was kept first: refused, nothing kept.
+    const PreparedScan stale = parts.prepare(third);
+    parts.estimate(third, map);
+    EXPECT_THROW(parts.finish(stale, map), std::logic_error);
+    EXPECT_EQ(parts.poses().size(), 4u);
+}

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <exception>
 #include <optional>
 #include <type_traits>
 
@@ -194,20 +195,50 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
     {
         Progress progress(progress_tag.empty() ? "map" : "map " + progress_tag, sequence.size());
         if (first_frame > 0) progress.update(first_frame, "resumed");
-        for (std::size_t i = first_frame; i < sequence.size(); ++i) {
+        // With odometry, the next scan is loaded and its registration prepared (what needs no
+        // map: its points, the prediction, ICP) while the map trains on the current one; an
+        // error on the way is kept for that scan's turn.
+        struct Ahead {
+            std::size_t index = 0;
+            Scan scan;
+            double load_seconds = 0.0;
+            std::optional<PreparedScan> prepared;
+            std::exception_ptr error;
+        };
+        std::optional<Ahead> ahead;
+        const auto load_scan = [&](std::size_t j, Scan& scan, double& load_seconds) {
             const auto t_load = std::chrono::steady_clock::now();
-            Scan scan = sequence.load(i);
-            const double load_seconds = seconds_since(t_load);
+            scan = sequence.load(j);
+            load_seconds = seconds_since(t_load);
             if (deskew && config.deskew.mode == DeskewMode::kOn) require_point_times(scan);
+        };
+        const auto prepare_scan = [&](std::size_t j, const Scan& scan) {
+            // Registered with the last estimated motion (the prediction's velocity) as its
+            // sweep's prior (bootstrap_sweep below gives the first sweep's).
+            std::optional<SweepPrior> sweep;
+            if (deskew && !scan.point_time_s.empty()) {
+                sweep = sweep_prior(sequence, j, *result.odometry, config.deskew.scan_period_s);
+            }
+            return result.odometry->prepare(scan, sweep ? &*sweep : nullptr);
+        };
+        for (std::size_t i = first_frame; i < sequence.size(); ++i) {
+            const auto t_scan = std::chrono::steady_clock::now();
+            Scan scan;
+            double load_seconds = 0.0;
+            std::optional<PreparedScan> prepared;
+            if (ahead && ahead->index == i) {
+                if (ahead->error) std::rethrow_exception(ahead->error);
+                scan = std::move(ahead->scan);
+                load_seconds = ahead->load_seconds;
+                prepared = std::move(ahead->prepared);
+            } else {
+                load_scan(i, scan, load_seconds);
+            }
+            ahead.reset();
             const OdometryRecord* pose = nullptr;
             if (result.odometry) {
-                // Registered with the last estimated motion (the prediction's velocity) as its
-                // sweep's prior (bootstrap_sweep below gives the first sweep's).
-                std::optional<SweepPrior> sweep;
-                if (deskew && !scan.point_time_s.empty()) {
-                    sweep = sweep_prior(sequence, i, *result.odometry, config.deskew.scan_period_s);
-                }
-                pose = &result.odometry->estimate(scan, mapper.sdf(), sweep ? &*sweep : nullptr);
+                if (!prepared) prepared = prepare_scan(i, scan);
+                pose = &result.odometry->finish(std::move(*prepared), mapper.sdf());
                 if (deskew && i == 0 && sequence.size() > 1 && !scan.point_time_s.empty()) {
                     // No pose before the first scan tells its sweep's motion: the next scan
                     // does, before the first is mapped.
@@ -231,12 +262,25 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
                              config.odometry.min_scan_points);
                 progress.update(i + 1, "skipped");
             } else {
-                // The scan joins the odometry's ICP reference while the map trains on it: the
-                // two share nothing, and the next scan needs both.
+                // The scan joins the odometry's ICP reference, and the next scan is prepared,
+                // while the map trains on it: they share nothing, and the next scan's
+                // registration to the map (finish) waits for both.
                 const IncrementalFrameStats* mapped = nullptr;
                 if (result.odometry) {
+                    const bool next = i + 1 < sequence.size();
                     tbb::parallel_invoke([&] { mapped = &mapper.add_scan(scan); },
-                                         [&] { result.odometry->remember_scan(scan); });
+                                         [&] {
+                                             result.odometry->remember_scan(scan);
+                                             if (!next) return;
+                                             ahead.emplace();
+                                             ahead->index = i + 1;
+                                             try {
+                                                 load_scan(i + 1, ahead->scan, ahead->load_seconds);
+                                                 ahead->prepared = prepare_scan(i + 1, ahead->scan);
+                                             } catch (...) {
+                                                 ahead->error = std::current_exception();
+                                             }
+                                         });
                 } else {
                     mapped = &mapper.add_scan(scan);
                 }
@@ -257,7 +301,7 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
                 }
                 progress.update(i + 1, detail);
             }
-            result.scan_wall_seconds.push_back(seconds_since(t_load));
+            result.scan_wall_seconds.push_back(seconds_since(t_scan));
             const bool last = i + 1 == sequence.size();
             if (mesh_every > 0 && ((i + 1) % static_cast<std::size_t>(mesh_every) == 0) && !last) {
                 ProgressMesh snapshot;

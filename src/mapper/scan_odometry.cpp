@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -155,17 +156,22 @@ Eigen::Isometry3d ScanOdometry::sweep_motion(std::size_t i) const {
 
 const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& map,
                                              const SweepPrior* sweep_prior) {
+    return finish(prepare(scan, sweep_prior), map);
+}
+
+PreparedScan ScanOdometry::prepare(const Scan& scan, const SweepPrior* sweep_prior) const {
     const auto start = std::chrono::steady_clock::now();
-    replaying_ = false;
-    OdometryRecord record;
+    PreparedScan out;
+    OdometryRecord& record = out.record;
     // 1. Registration points: as measured (`measured`, with their sweep fractions) and deskewed
     // at the prior's motion (`points`), or as given without a prior.
     const std::vector<std::size_t> selected = select_registration_point_indices(
         scan.points_sensor, point_config(config_, config_.voxel_size_m));
-    std::vector<Eigen::Vector3f> points(selected.size());
+    std::vector<Eigen::Vector3f>& points = out.points;
+    points.resize(selected.size());
     for (std::size_t j = 0; j < selected.size(); ++j) points[j] = scan.points_sensor[selected[j]];
-    std::vector<Eigen::Vector3f> measured;
-    SweepModel sweep;
+    std::vector<Eigen::Vector3f>& measured = out.measured;
+    SweepModel& sweep = out.sweep;
     if (sweep_prior) {
         if (scan.point_time_s.size() != scan.points_sensor.size()) {
             throw DataError("scan '" + scan.source.string() + "' has " +
@@ -196,12 +202,14 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
 
     // 2. Prediction.
     const std::size_t k = poses_.size();
-    Eigen::Isometry3d prediction = scan.T_world_sensor;  // the first scan anchors the world
+    out.scan = k;
+    Eigen::Isometry3d& prediction = out.prediction;
+    prediction = scan.T_world_sensor;  // the first scan anchors the world
     // The second scan: at rest, or where the first sweep's motion (bootstrap_sweep) took it.
     if (k == 1) prediction = poses_[0] * sweep_motion(0);
     if (k >= 2) prediction = predict_constant_velocity(poses_[k - 2], poses_[k - 1]);
+    out.sdf_start = prediction;
 
-    Eigen::Isometry3d estimate = prediction;
     if (points.size() < static_cast<std::size_t>(config_.min_scan_points)) {
         record.source = PoseSource::kSkipped;
     } else if (k == 0) {
@@ -210,15 +218,12 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
     } else {
         // 3. Registration from the prediction, coarse to fine: a stage starts from the previous
         // stage's pose if that was accepted, else from the prediction.
-        RegistrationResult result;
-        int iterations = 0;
-        const bool icp = k <= static_cast<std::size_t>(config_.icp_warmup_scans);
+        out.registers = true;
+        out.icp = k <= static_cast<std::size_t>(config_.icp_warmup_scans);
         // The last stage estimates the sweep's motion: the SDF's, or ICP's in the warm-up.
-        const bool continuous = sweep_prior && config_.estimate_sweep;
+        out.continuous = sweep_prior && config_.estimate_sweep;
         // After the warm-up, ICP (when icp_before_sdf) only finds the SDF registration's start.
-        Eigen::Isometry3d sdf_start = prediction;
-        bool icp_found_start = false;
-        if (icp || config_.icp_before_sdf) {
+        if (out.icp || config_.icp_before_sdf) {
             record.tried = RegistrationMethod::kIcp;
             std::vector<Eigen::Vector3d> reference, normals;
             for (std::size_t r = 0; r < reference_world_.size(); ++r) {
@@ -229,11 +234,11 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
             }
             if (!reference.empty()) {
                 const ReferencePlanes planes(reference, normals);
-                const bool icp_sweep = icp && continuous;
+                const bool icp_sweep = out.icp && out.continuous;
                 const auto run_icp = [&](const Eigen::Isometry3d& start) {
                     IcpRun run = run_icp_stages(config_, points, icp_sweep ? &measured : nullptr,
                                                 icp_sweep ? &sweep : nullptr, planes, start);
-                    iterations += run.iterations;
+                    out.iterations += run.iterations;
                     return run;
                 };
                 IcpRun best = run_icp(prediction);
@@ -256,34 +261,54 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
                     }
                     record.yaw_hypotheses = config_.icp_yaw_hypotheses;
                 }
-                result = best.result;
+                out.result = best.result;
                 record.icp_inlier_ratio = best.inlier_ratio;
-                sdf_start = best.pose;
-                icp_found_start = result.accepted();
+                out.sdf_start = best.pose;
+                out.icp_found_start = out.result.accepted();
             }
         }
-        if (!icp) {
+    }
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return out;
+}
+
+const OdometryRecord& ScanOdometry::finish(PreparedScan prepared, const NeuralSdf& map) {
+    const auto start = std::chrono::steady_clock::now();
+    if (prepared.scan != poses_.size()) {
+        throw std::logic_error("ScanOdometry::finish: the scan was prepared as scan " +
+                               std::to_string(prepared.scan) + " but " +
+                               std::to_string(poses_.size()) + " poses are kept");
+    }
+    replaying_ = false;
+    OdometryRecord& record = prepared.record;
+    Eigen::Isometry3d estimate = prepared.prediction;
+    if (prepared.registers) {
+        RegistrationResult& result = prepared.result;
+        int& iterations = prepared.iterations;
+        if (!prepared.icp) {
             record.tried = RegistrationMethod::kSdf;
             // From ICP's pose the SDF refines in one narrow stage; from the prediction, coarse to
             // fine.
             std::vector<double> scales;
-            if (!icp_found_start &&
+            if (!prepared.icp_found_start &&
                 config_.sdf_coarse_kernel_scale_m > config_.sdf_kernel_scale_m) {
                 scales.push_back(config_.sdf_coarse_kernel_scale_m);
             }
             scales.push_back(config_.sdf_kernel_scale_m);
             const NeuralSdfField field(map);
-            Eigen::Isometry3d from = sdf_start;
+            Eigen::Isometry3d from = prepared.sdf_start;
             for (const double scale_m : scales) {
                 SdfRegistrationConfig sdf_config;
                 sdf_config.solver = solver_config(config_, scale_m);
-                result = continuous ? register_to_sdf(measured, from, field, sdf_config, &sweep)
-                                    : register_to_sdf(points, from, field, sdf_config);
+                result = prepared.continuous
+                             ? register_to_sdf(prepared.measured, from, field, sdf_config,
+                                               &prepared.sweep)
+                             : register_to_sdf(prepared.points, from, field, sdf_config);
                 iterations += result.iterations;
                 if (result.accepted()) from = result.T_world_sensor;
             }
         }
-        if (continuous && result.accepted()) {
+        if (prepared.continuous && result.accepted()) {
             for (int j = 0; j < 6; ++j) record.sweep_twist[j] = result.sweep_twist[j];
             record.sweep_estimated = true;
         }
@@ -299,18 +324,19 @@ const OdometryRecord& ScanOdometry::estimate(const Scan& scan, const NeuralSdf& 
         record.valid_points = result.num_valid_points;
         if (record.accepted) {
             estimate = result.T_world_sensor;
-            record.source = icp ? PoseSource::kIcp : PoseSource::kSdf;
-        } else if (icp_found_start) {
-            estimate = sdf_start;
+            record.source = prepared.icp ? PoseSource::kIcp : PoseSource::kSdf;
+        } else if (prepared.icp_found_start) {
+            estimate = prepared.sdf_start;
             record.source = PoseSource::kIcp;
         } else {
             record.source = PoseSource::kPrediction;
         }
-        const Vector6d correction = se3_log(prediction.inverse() * estimate);
+        const Vector6d correction = se3_log(prepared.prediction.inverse() * estimate);
         record.correction_m = correction.head<3>().norm();
         record.correction_rad = correction.tail<3>().norm();
     }
     record.seconds =
+        prepared.seconds +
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     // Rounded back onto SO(3): the constant-velocity prediction multiplies by the transpose of
     // the previous rotation, so a rotation that is off by e grows by about 3e a scan, and after

@@ -96,6 +96,26 @@ struct SweepPrior {
     double interval_s = 0.1;
 };
 
+/// What a scan's registration finds before it needs the map (steps 1-2 and ICP): made by
+/// ScanOdometry::prepare() and ended by finish(), so that the next scan's points and ICP can be
+/// prepared while the map still trains on the scan before it.
+struct PreparedScan {
+    OdometryRecord record;                  ///< filled so far
+    std::vector<Eigen::Vector3f> points;    ///< registration points (deskewed with a sweep)
+    std::vector<Eigen::Vector3f> measured;  ///< as measured, with a sweep
+    SweepModel sweep;
+    bool registers = false;   ///< neither the first scan nor skipped: finish() registers it
+    bool continuous = false;  ///< the last stage estimates the sweep's motion
+    bool icp = false;         ///< ICP's warm-up: no registration to the map
+    std::size_t scan = 0;     ///< the scan's number among the odometry's (poses() before it)
+    Eigen::Isometry3d prediction = Eigen::Isometry3d::Identity();
+    Eigen::Isometry3d sdf_start = Eigen::Isometry3d::Identity();  ///< ICP's pose, or prediction
+    bool icp_found_start = false;
+    RegistrationResult result;  ///< ICP's last stage
+    int iterations = 0;
+    double seconds = 0.0;
+};
+
 /// The odometry of one run: poses and records of the scans seen so far.
 class ScanOdometry {
   public:
@@ -110,6 +130,14 @@ class ScanOdometry {
     /// DataError if their count differs from the points'.
     const OdometryRecord& estimate(const Scan& scan, const NeuralSdf& map,
                                    const SweepPrior* sweep = nullptr);
+
+    /// estimate() in two parts: prepare() does what needs no map (it changes nothing and may run
+    /// while the map trains on the scan before, once that scan's remember_scan() is done), and
+    /// finish() registers to `map` and keeps the pose. finish(scan, prepare(scan, sweep), map)
+    /// is estimate(scan, map, sweep), bit for bit. finish() throws std::logic_error if another
+    /// scan's pose was kept since `prepared` was made.
+    PreparedScan prepare(const Scan& scan, const SweepPrior* sweep = nullptr) const;
+    const OdometryRecord& finish(PreparedScan prepared, const NeuralSdf& map);
 
     /// The first scan's sweep, which no earlier pose gives: from `second`, the next scan,
     /// before `first` is mapped. Both are deskewed at one constant velocity, the motion between
