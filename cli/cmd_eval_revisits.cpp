@@ -13,6 +13,7 @@
 #include "cli_common.hpp"
 #include "command_registry.hpp"
 #include "shine/core/error.hpp"
+#include "shine/core/median.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/scan_sequence.hpp"
@@ -75,13 +76,6 @@ const Eigen::Isometry3d* pose_of(const Trajectory& t, std::size_t scan) {
     const auto it = std::lower_bound(t.scans.begin(), t.scans.end(), scan);
     if (it == t.scans.end() || *it != scan) return nullptr;
     return &t.T_world_sensor[static_cast<std::size_t>(it - t.scans.begin())];
-}
-
-double median_of(std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    const std::size_t mid = v.size() / 2;
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-    return v[mid];
 }
 
 int run_eval_revisits(const EvalRevisitsOptions& options) {
@@ -163,8 +157,8 @@ int run_eval_revisits(const EvalRevisitsOptions& options) {
             m.push_back(row.disagreement[t].translation_m);
             deg.push_back(row.disagreement[t].rotation_deg);
         }
-        summaries[t].median_m = median_of(m);
-        summaries[t].median_deg = median_of(deg);
+        summaries[t].median_m = median(m);
+        summaries[t].median_deg = median(deg);
         summaries[t].max_m = m.empty() ? 0.0 : *std::max_element(m.begin(), m.end());
         summaries[t].max_deg = deg.empty() ? 0.0 : *std::max_element(deg.begin(), deg.end());
     }
