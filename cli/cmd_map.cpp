@@ -199,7 +199,9 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
                              {"free_samples", mapper.consolidation().free_samples},
                              {"batch_size", mapper.consolidation().batch_size},
                              {"seconds", mapper.consolidation().seconds},
-                             {"bce", mapper.consolidation().bce}}},
+                             {"bce", mapper.consolidation().bce},
+                             {"dynamic_dropped", mapper.consolidation().dynamic_dropped},
+                             {"vote_seconds", mapper.consolidation().vote_seconds}}},
                            {"frames", frames},
                            {"progress_meshes", meshes}};
 }

@@ -1,8 +1,9 @@
 // The dynamic-point filter on a short street with movers: without it (`--dynamic-filter off`) the
 // movers leave ghosts in the map, with it (the default) most are gone; the far votes remove ghosts
-// that the near scans cannot.
+// that the near scans cannot, in batch mode and, before the consolidation, in incremental mode.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <fstream>
 #include <string>
 
@@ -21,7 +22,8 @@ struct GhostRun {
 /// `config` if not empty) and scores the mesh against the static street with the movers' swept
 /// volumes.
 GhostRun map_and_score(const fs::path& data, const fs::path& dir, const std::string& filter,
-                       const std::string& name = "", const std::string& config = "") {
+                       const std::string& name = "", const std::string& config = "",
+                       const std::string& mode = "batch") {
     GhostRun run;
     const fs::path out = dir / ("map_" + filter + name);
     std::string config_arg;
@@ -32,8 +34,8 @@ GhostRun map_and_score(const fs::path& data, const fs::path& dir, const std::str
     }
     const CliResult m = run_shine("map '" + data.string() + "' -o '" + out.string() +
                                       "' --leaf-size-m 0.4 --iterations 150 --threads 2 -q "
-                                      "--no-eval --dynamic-filter " +
-                                      filter + config_arg,
+                                      "--no-eval --mode " +
+                                      mode + " --dynamic-filter " + filter + config_arg,
                                   dir);
     EXPECT_EQ(m.exit_code, 0) << m.output;
     const CliResult e = run_shine("eval --pred '" + (out / "mesh.ply").string() + "' --ref '" +
@@ -117,6 +119,37 @@ TEST(CliDynamicFilter, VoxelGroupsAreVotedOnAndDroppedWhole) {
     // Every point is kept: none is thinned, every one is a ray the filter votes on.
     EXPECT_EQ(on.stats["preprocess"]["dropped_downsample"], 0);
     EXPECT_EQ(on.stats["rays"], on.stats["preprocess"]["output_points"]);
+}
+
+TEST(CliDynamicFilter, IncrementalKeptScansVoteOnEachOtherBeforeTheConsolidation) {
+    // Incremental mode knows only the past while it maps; before the consolidation the kept
+    // scans vote on each other from both sides, near and far, as batch mode's scans do
+    // (far_vote_frames 0: not at all).
+    const fs::path dir = test_dir_of("cli_dynamic_filter_end_votes");
+    const fs::path data = simulate_movers_street(dir);
+    ASSERT_FALSE(data.empty());
+    const GhostRun without =
+        map_and_score(data, dir, "on", "_without",
+                      "dynamic:\n  vote_frames: 3\n  far_vote_frames: 0\n", "incremental");
+    const GhostRun with =
+        map_and_score(data, dir, "on", "_with",
+                      "dynamic:\n  vote_frames: 3\n  far_vote_frames: 14\n", "incremental");
+    const nlohmann::json& before = without.stats["incremental"]["consolidation"];
+    const nlohmann::json& after = with.stats["incremental"]["consolidation"];
+    std::printf(
+        "ghosts %.1f -> %.1f m^2, F %.4f -> %.4f, %d points dropped before the "
+        "consolidation\n",
+        without.ghost_area_m2, with.ghost_area_m2, without.fscore, with.fscore,
+        after["dynamic_dropped"].get<int>());
+    EXPECT_EQ(before["dynamic_dropped"].get<int>(), 0);
+    EXPECT_GT(after["dynamic_dropped"].get<int>(), 0);
+    EXPECT_GT(after["vote_seconds"].get<double>(), 0.0);
+    // Measured: 52.9 m^2 of ghosts without the votes, 52.0 m^2 with them (128 points of compact
+    // objects dropped); F-score 90.20 % and 90.09 %. (Flagging every point, ground and walls too,
+    // gave 48.7 m^2; on the full streets that cost the static surface 0.1-0.3 point,
+    // docs/movers.md.)
+    EXPECT_LT(with.ghost_area_m2, without.ghost_area_m2);
+    EXPECT_GT(with.fscore, without.fscore - 0.01);
 }
 
 }  // namespace

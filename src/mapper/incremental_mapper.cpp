@@ -3,6 +3,7 @@
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
@@ -234,6 +235,8 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
     window_objects_.push_back(std::move(current_objects_));
     current_objects_ = {};
     window_.push_back(std::move(current));
+    window_images_.push_back(std::move(current_image_));
+    current_image_ = {};
     if (members) window_members_.push_back(std::move(grouped));
     window_normals_.emplace_back();
     // The window holds the scans the normals and the replay need, the current one last.
@@ -241,12 +244,78 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
         std::max(config_.incremental.normal_window_frames, config_.incremental.replay_frames));
     while (window_.size() > window_frames) {
         window_.pop_front();
+        // The image's buffers are recycled for the next scan's (spare_image_), rather than
+        // fresh buffers of a slightly different size each scan, allocated on a worker thread
+        // and held for replay_frames scans.
+        if (!window_images_.empty()) {
+            spare_image_ = std::move(window_images_.front().second);
+            window_images_.pop_front();
+        }
         if (!window_members_.empty()) window_members_.pop_front();
         ++window_first_serial_;
         window_normals_.pop_front();
         window_votes_.pop_front();
         window_objects_.pop_front();
     }
+}
+
+bool IncrementalMapper::keeps_scan_images() const {
+    const DynamicPointConfig& dynamic = config_.dynamic;
+    return dynamic.enabled && dynamic.far_vote_frames > dynamic.vote_frames &&
+           dynamic.objects.min_dynamic_share > 0.0f && config_.incremental.consolidation_steps > 0;
+}
+
+std::size_t IncrementalMapper::vote_among_kept_scans() {
+    const DynamicPointConfig& dynamic = config_.dynamic;
+    const std::size_t n = window_.size();
+    if (!keeps_scan_images() || window_images_.size() != n) return 0;
+    const std::size_t kept =
+        std::min<std::size_t>(n, static_cast<std::size_t>(config_.incremental.replay_frames));
+    const std::size_t first = n - kept;
+    const auto near_frames = static_cast<std::size_t>(dynamic.vote_frames);
+    const auto far_frames = static_cast<std::size_t>(dynamic.far_vote_frames);
+    // Fresh votes from both sides (the scans' own votes came from the scans before them only).
+    std::vector<std::vector<FreeSpaceVotes>> votes(n);
+    for (std::size_t w = first; w < n; ++w) votes[w].resize(window_[w].points_map.size());
+    for (std::size_t v = first; v < n; ++v) {
+        if (window_images_[v].second.empty()) continue;
+        RangeImage image = window_images_[v].second;
+        image.prepare_window(dynamic.window_bins);
+        const Eigen::Isometry3f& T_sensor_map = window_images_[v].first;
+        const std::size_t lo = v > first + far_frames ? v - far_frames : first;
+        const std::size_t hi = std::min(n, v + far_frames + 1);
+        tbb::parallel_for(lo, hi, [&](std::size_t w) {
+            if (w == v || votes[w].empty()) return;
+            const std::size_t apart = w > v ? w - v : v - w;
+            add_free_space_votes(image, T_sensor_map, window_[w].points_map.data(),
+                                 window_[w].points_map.size(), dynamic, votes[w].data(),
+                                 apart > near_frames);
+        });
+    }
+    std::size_t dropped = 0;
+    for (std::size_t w = first; w < n; ++w) {
+        std::vector<Eigen::Vector3f>& points = window_[w].points_map;
+        std::vector<std::uint8_t> flags(points.size());
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            flags[i] = is_dynamic(votes[w][i], dynamic) ? 1 : 0;
+        }
+        ScanObjects& scan_objects = window_objects_[w];
+        if (scan_objects.object_of.size() != points.size()) continue;
+        // Only the points of compact objects: the far viewpoints vote free on ground and walls
+        // seen at grazing angles, which the scans' own votes had kept (docs/movers.md).
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            if (scan_objects.object_of[i] == ScanObjects::kNoObject) flags[i] = 0;
+        }
+        stats_.dynamic_objects +=
+            spread_dynamic_to_objects(scan_objects, flags, dynamic.objects).objects_dynamic;
+        if (!window_members_.empty()) drop_voxel_runs(window_members_[w], flags);
+        dropped += drop_flagged(flags, points, window_votes_[w], window_normals_[w],
+                                window_[w].point_origins_map, scan_objects.object_of);
+    }
+    stats_.dynamic_points_dropped += dropped;
+    // The replayed rays are assembled anew from the thinned scans.
+    if (dropped > 0) replay_.clear();
+    return dropped;
 }
 
 bool IncrementalMapper::keeps_voxel_members() const {
@@ -272,6 +341,14 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     tbb::parallel_invoke(
         [&] {
             image = RangeImage(scan.points_sensor);
+            // Kept without its window for the votes before the consolidation (a third of the
+            // memory; prepared again then, one image at a time).
+            if (keeps_scan_images()) {
+                current_image_.first = T_sensor_map;
+                current_image_.second = std::move(spare_image_);
+                current_image_.second = image;  // into the recycled buffers where they fit
+                spare_image_ = {};
+            }
             image.prepare_window(dynamic.window_bins);  // asked for the points of many scans
         },
         [&] {
@@ -401,6 +478,21 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     const auto start = std::chrono::steady_clock::now();
     consolidation_ = ConsolidationStats{};
     if (steps == 0 || window_.empty()) return consolidation_;
+    // The kept scans vote on each other first: a mover seen far ahead, or a parked car that
+    // left, is seen through only by scans that came later or from farther than the scans'
+    // own votes reached.
+    const auto vote_start = std::chrono::steady_clock::now();
+    consolidation_.dynamic_dropped = vote_among_kept_scans();
+    consolidation_.vote_seconds = seconds_since(vote_start);
+    // The images have cast their votes, and the consolidation's rays are the run's largest
+    // arrays: the images' memory, and the pages the heap holds free, go back first (the peak RSS
+    // of a long run is reached here). Scans added after this bring their own images; the ones
+    // emptied here vote no more.
+    for (auto& [T_sensor_map, image] : window_images_) image = RangeImage();
+    spare_image_ = RangeImage();
+#if defined(__GLIBC__)
+    malloc_trim(0);
+#endif
     // The kept scans: every point of each, grouped by voxel, or the points their steps used.
     RaySet every_point;
     const RaySet* kept_rays = &every_point;
@@ -566,6 +658,8 @@ void IncrementalMapper::release_training_state() {
     window_votes_ = {};
     window_objects_ = {};
     voters_ = {};
+    window_images_ = {};
+    spare_image_ = {};
     replay_ = ReplayRays();
     sdf_->octree.compact_structure();
 #if defined(__GLIBC__)

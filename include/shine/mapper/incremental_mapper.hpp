@@ -85,6 +85,10 @@ struct ConsolidationStats {
     float surface_band_m = 0.0f;
     int free_samples = 0;  ///< free-space samples per ray
     int batch_size = 0;    ///< samples per step
+    /// Points of the kept scans that their votes on each other made dynamic before the steps
+    /// (IncrementalMapper::vote_among_kept_scans), and the seconds the votes took.
+    std::size_t dynamic_dropped = 0;
+    double vote_seconds = 0.0;
 };
 
 /// The decoder incremental mode uses for `config`: config.incremental.decoder_weights resolved
@@ -178,6 +182,16 @@ class IncrementalMapper {
     std::vector<FreeSpaceVotes> drop_dynamic_points(const Scan& scan, ScanInMap& current,
                                                     ScanInMap* current_members,
                                                     IncrementalFrameStats& frame);
+    /// Whether the kept scans vote on each other before the consolidation (dynamic filter on, far
+    /// votes configured: far_vote_frames > vote_frames, objects dropped whole:
+    /// objects.min_dynamic_share > 0, and consolidation steps to run).
+    bool keeps_scan_images() const;
+    /// Before the consolidation: every kept scan's points are voted on by the other kept scans'
+    /// range images, from both sides, near (vote_frames) and far (up to far_vote_frames), as batch
+    /// mode's votes are. Of the points that makes dynamic, those of compact objects are dropped
+    /// (their objects whole, voxel groups with their leads); ground and structures keep theirs,
+    /// since far viewpoints see them at grazing angles. Returns the points dropped.
+    std::size_t vote_among_kept_scans();
     /// True when the window keeps every point of its scans (preprocess.voxel_points all, with
     /// thinning on): window_members_.
     bool keeps_voxel_members() const;
@@ -216,6 +230,12 @@ class IncrementalMapper {
     ScanObjects current_objects_;  ///< the current scan's, until it joins the window
     /// Range images of the last dynamic.vote_frames scans, with their map-to-sensor transforms.
     std::deque<std::pair<Eigen::Isometry3f, RangeImage>> voters_;
+    /// With end votes (keeps_scan_images()): each window scan's range image (not prepared) and
+    /// map-to-sensor transform, so that the kept scans can vote on each other's points before
+    /// the consolidation; empty images otherwise. In step with window_.
+    std::deque<std::pair<Eigen::Isometry3f, RangeImage>> window_images_;
+    std::pair<Eigen::Isometry3f, RangeImage> current_image_;  ///< the scan being added
+    RangeImage spare_image_;  ///< the image of the scan that last left the window, for its buffers
     std::vector<IncrementalFrameStats> frames_;
     MappingStats stats_;
     std::uint64_t iteration_ = 0;

@@ -51,7 +51,10 @@ struct DynamicPointConfig {
     /// against 0.7 % of the dropped points on the street's movers (docs/movers.md).
     float min_free_share = 0.4f;
     /// Batch mode: the scans from vote_frames + 1 to this many before and after a scan vote
-    /// apart (far votes); 0 (or at most vote_frames) asks no far scans. Incremental mode asks none.
+    /// apart (far votes); 0 (or at most vote_frames) asks no far scans. Incremental mode, which
+    /// knows only the past while it maps, asks them before its consolidation: the kept scans vote
+    /// on each other from both sides, near and far, and the compact objects those votes make
+    /// dynamic leave it (IncrementalMapper::vote_among_kept_scans).
     /// 50 (25 before): the 20-mover street's ghosts 1.95 -> 1.63 %, the real walk's held-out rays
     /// within 10 cm +0.08 / +0.06 points, the static streets -0.10 to -0.15 points
     /// (docs/movers.md).
