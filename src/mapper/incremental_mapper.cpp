@@ -488,10 +488,9 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     const auto vote_start = std::chrono::steady_clock::now();
     consolidation_.dynamic_dropped = vote_among_kept_scans();
     consolidation_.vote_seconds = seconds_since(vote_start);
-    // The images have cast their votes, and the consolidation's rays are the run's largest
-    // arrays: the images' memory, and the pages the heap holds free, go back first (the peak RSS
-    // of a long run is reached here). Scans added after this bring their own images; the ones
-    // emptied here vote no more.
+    // The images have cast their votes, and the consolidation's rays are among the run's largest
+    // arrays: the images' memory, and the pages the heap holds free, go back first. Scans added
+    // after this bring their own images; the ones emptied here vote no more.
     for (auto& [T_sensor_map, image] : window_images_) image = RangeImage();
     spare_image_ = RangeImage();
 #if defined(__GLIBC__)
@@ -619,10 +618,10 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     }
     frame.optimizer_bytes = trainer_->optimizer_bytes();
 #if defined(__GLIBC__)
-    // Each scan allocates and frees megabytes of points, votes and images on several threads;
-    // glibc keeps the freed pages, scattered over its arenas, and a long run's resident memory
-    // grew with them (the 4 km city: 1.8-2.2 GB at the end of the mapping, about 1.3 GB with the
-    // free pages handed back every 25 scans, 6 ms a time; docs/odometry.md).
+    // Each scan allocates and frees megabytes of points, votes and images on several threads,
+    // and glibc keeps the freed pages in its arenas: the 4 km city's peak RSS, at the end of the
+    // mapping, varied from 1.76 to 2.18 GB between runs with the same poses; 1.77 GB in both runs
+    // with the free pages handed back every 25 scans, 6 ms a time (docs/odometry.md).
     if ((frames_.size() + 1) % kTrimEveryScans == 0) malloc_trim(0);
 #endif
     frame.importance_seconds = seconds_since(start);

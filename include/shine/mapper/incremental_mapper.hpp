@@ -188,9 +188,9 @@ class IncrementalMapper {
     bool keeps_scan_images() const;
     /// Before the consolidation: every kept scan's points are voted on by the other kept scans'
     /// range images, from both sides, near (vote_frames) and far (up to far_vote_frames), as batch
-    /// mode's votes are. Of the points that makes dynamic, those of compact objects are dropped
-    /// (their objects whole, voxel groups with their leads); ground and structures keep theirs,
-    /// since far viewpoints see them at grazing angles. Returns the points dropped.
+    /// mode's votes are. Of the points those votes make dynamic, those of compact objects are
+    /// dropped (their objects whole, voxel groups with their leads); ground and structures keep
+    /// theirs, since far viewpoints see them at grazing angles. Returns the points dropped.
     std::size_t vote_among_kept_scans();
     /// True when the window keeps every point of its scans (preprocess.voxel_points all, with
     /// thinning on): window_members_.
