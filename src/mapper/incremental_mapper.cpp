@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <type_traits>
+#include <utility>
 
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
@@ -251,16 +252,21 @@ void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFra
         // The image's buffers are recycled for the next scan's (spare_image_), rather than
         // fresh buffers of a slightly different size each scan, allocated on a worker thread
         // and held for replay_frames scans.
-        if (!window_images_.empty()) {
-            spare_image_ = std::move(window_images_.front().second);
-            window_images_.pop_front();
-        }
+        spare_image_ = std::move(window_images_.front().second);
+        window_images_.pop_front();
         if (!window_members_.empty()) window_members_.pop_front();
         ++window_first_serial_;
         window_normals_.pop_front();
         window_votes_.pop_front();
         window_objects_.pop_front();
     }
+#if defined(__GLIBC__)
+    // Each scan allocates and frees megabytes of points, votes and images on several threads,
+    // and glibc keeps the freed pages in its arenas: the 4 km city's peak RSS, at the end of the
+    // mapping, varied from 1.76 to 2.18 GB between runs with the same poses; 1.76-1.77 GB in three
+    // runs with the free pages handed back every 25 scans, 6 ms a time (docs/odometry.md).
+    if ((frames_.size() + 1) % kTrimEveryScans == 0) malloc_trim(0);
+#endif
 }
 
 bool IncrementalMapper::keeps_scan_images() const {
@@ -299,16 +305,14 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
     std::size_t dropped = 0;
     for (std::size_t w = first; w < n; ++w) {
         std::vector<Eigen::Vector3f>& points = window_[w].points_map;
-        std::vector<std::uint8_t> flags(points.size());
-        for (std::size_t i = 0; i < points.size(); ++i) {
-            flags[i] = is_dynamic(votes[w][i], dynamic) ? 1 : 0;
-        }
         ScanObjects& scan_objects = window_objects_[w];
         if (scan_objects.object_of.size() != points.size()) continue;
         // Only the points of compact objects: the far viewpoints vote free on ground and walls
         // seen at grazing angles, which the scans' own votes had kept (docs/movers.md).
+        std::vector<std::uint8_t> flags(points.size());
         for (std::size_t i = 0; i < points.size(); ++i) {
-            if (scan_objects.object_of[i] == ScanObjects::kNoObject) flags[i] = 0;
+            flags[i] = scan_objects.object_of[i] != ScanObjects::kNoObject &&
+                       is_dynamic(votes[w][i], dynamic);
         }
         stats_.dynamic_objects +=
             spread_dynamic_to_objects(scan_objects, flags, dynamic.objects).objects_dynamic;
@@ -349,9 +353,8 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
             // memory; prepared again then, one image at a time).
             if (keeps_scan_images()) {
                 current_image_.first = T_sensor_map;
-                current_image_.second = std::move(spare_image_);
+                std::swap(current_image_.second, spare_image_);  // spare_image_ now empty
                 current_image_.second = image;  // into the recycled buffers where they fit
-                spare_image_ = {};
             }
             image.prepare_window(dynamic.window_bins);  // asked for the points of many scans
         },
@@ -617,13 +620,6 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
             static_cast<std::uint32_t>(config_.incremental.active_frames));
     }
     frame.optimizer_bytes = trainer_->optimizer_bytes();
-#if defined(__GLIBC__)
-    // Each scan allocates and frees megabytes of points, votes and images on several threads,
-    // and glibc keeps the freed pages in its arenas: the 4 km city's peak RSS, at the end of the
-    // mapping, varied from 1.76 to 2.18 GB between runs with the same poses; 1.77 GB in both runs
-    // with the free pages handed back every 25 scans, 6 ms a time (docs/odometry.md).
-    if ((frames_.size() + 1) % kTrimEveryScans == 0) malloc_trim(0);
-#endif
     frame.importance_seconds = seconds_since(start);
     frame.total_seconds = seconds_since(frame_start);
     frame.stages[Stage::kPreprocess] = frame.preprocess_seconds;
