@@ -617,6 +617,21 @@ Scan ground_scan_with_table_at(double x, bool with_table) {
     return scan;
 }
 
+/// Maps `scans` table scans 0.3 m apart from x = 0, the table in the first two, and returns the
+/// points the dynamic filter dropped while mapping (from each scan and from the window before it);
+/// each scan's training rays go to `frame_rays` if given.
+std::size_t add_table_scans(IncrementalMapper& mapper, int scans,
+                            std::vector<std::size_t>* frame_rays = nullptr) {
+    std::size_t dropped = 0;
+    for (int k = 0; k < scans; ++k) {
+        const IncrementalFrameStats& frame =
+            mapper.add_scan(ground_scan_with_table_at(0.3 * k, k < 2));
+        if (frame_rays) frame_rays->push_back(frame.rays);
+        dropped += frame.dynamic_dropped + frame.dynamic_forgotten;
+    }
+    return dropped;
+}
+
 /// The configuration the table scans are mapped with: points from 0.5 m, 2048 samples a step.
 MapperConfig table_scene_config() {
     MapperConfig config;
@@ -669,7 +684,7 @@ TEST(IncrementalMapper, ConsolidationFreeSamplesCarveWhatLaterScansSawThrough) {
         MapperConfig config = table_scene_config();
         config.incremental.consolidation_free_samples = consolidation_free_samples;
         IncrementalMapper mapper(config);
-        for (int k = 0; k < 8; ++k) mapper.add_scan(ground_scan_with_table_at(0.3 * k, k < 2));
+        add_table_scans(mapper, 8);
         Mapped out;
         out.online = sdf_at_table(mapper.sdf());
         out.stats = mapper.consolidate(30);
@@ -712,12 +727,7 @@ TEST(IncrementalMapper, ConsolidationOnEveryPointTrainsTheVoxelsTheScansTrainedO
         config.preprocess.voxel_points = voxel_points;
         IncrementalMapper mapper(config);
         Mapped out;
-        for (int k = 0; k < 8; ++k) {
-            const IncrementalFrameStats& frame =
-                mapper.add_scan(ground_scan_with_table_at(0.3 * k, k < 2));
-            out.frame_rays.push_back(frame.rays);
-            out.dynamic_dropped += frame.dynamic_dropped + frame.dynamic_forgotten;
-        }
+        out.dynamic_dropped = add_table_scans(mapper, 8, &out.frame_rays);
         out.stats = mapper.consolidate(3);
         return out;
     };
@@ -755,11 +765,7 @@ TEST(IncrementalMapper, KeptScansVoteOnEachOtherBeforeTheConsolidation) {
         config.dynamic.far_vote_frames = far_vote_frames;
         IncrementalMapper mapper(config);
         Mapped out;
-        for (int k = 0; k < 10; ++k) {
-            const IncrementalFrameStats& frame =
-                mapper.add_scan(ground_scan_with_table_at(0.3 * k, k < 2));
-            out.online_dropped += frame.dynamic_dropped + frame.dynamic_forgotten;
-        }
+        out.online_dropped = add_table_scans(mapper, 10);
         out.stats = mapper.consolidate(60);
         out.consolidated = sdf_at_table(mapper.sdf());
         return out;
