@@ -554,6 +554,7 @@ int run_map(const MapOptions& given_options) {
         {"enabled", config.dynamic.enabled},
         {"points_dropped", stats.dynamic_points_dropped},
         {"objects_dropped", stats.dynamic_objects},
+        {"moving_objects", stats.moving_objects},
         {"share_dropped", stats.rays ? static_cast<double>(stats.dynamic_points_dropped) /
                                            static_cast<double>(stats.rays)
                                      : 0.0},

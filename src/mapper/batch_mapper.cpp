@@ -1,5 +1,7 @@
 #include "shine/mapper/batch_mapper.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -119,31 +121,59 @@ void BatchMapper::finish_scans() {
     if (!config_.dynamic.enabled || dynamic_dropped_) return;
     dynamic_dropped_ = true;
     auto start = std::chrono::steady_clock::now();
+    const std::uint32_t num_scans = rays_.num_scans();
+    // Each scan's points, their own votes (their voxel group's) and compact objects.
+    std::vector<std::vector<Eigen::Vector3f>> scan_points(num_scans);
+    std::vector<std::vector<std::uint8_t>> dynamic(num_scans);
+    std::vector<ScanObjects> objects(num_scans);
+    tbb::parallel_for(std::uint32_t(0), num_scans, [&](std::uint32_t s) {
+        const std::size_t begin = rays_.first_ray(s), end = rays_.first_ray(s + 1);
+        std::vector<Eigen::Vector3f>& points = scan_points[s];
+        points.reserve(end - begin);
+        for (std::size_t r = begin; r < end; ++r) points.push_back(rays_.endpoint(r));
+        const std::vector<std::uint32_t> voxel_begin = rays_.scan_voxel_begin(s);
+        const std::size_t first_group = rays_.group_at_or_after(begin);
+        dynamic[s].assign(points.size(), 0);
+        for_each_point_run(points.size(), voxel_begin, [&](std::size_t i, std::size_t run) {
+            dynamic[s][i] = is_dynamic(votes_[first_group + run], config_.dynamic) ? 1 : 0;
+        });
+        if (config_.dynamic.objects.min_dynamic_share > 0.0f) {
+            objects[s] = find_scan_objects(points, config_.dynamic.objects);
+        }
+    });
+    // The points of objects that move between the scans are dynamic (moving_objects.hpp).
+    if (config_.dynamic.motion.enabled) {
+        std::vector<const std::vector<Eigen::Vector3f>*> views(num_scans);
+        for (std::uint32_t s = 0; s < num_scans; ++s) views[s] = &scan_points[s];
+        MovingObjectStats motion;
+        const std::vector<std::vector<std::uint8_t>> moving =
+            find_moving_points(views, config_.dynamic.objects, config_.dynamic.motion, &motion);
+        for (std::uint32_t s = 0; s < num_scans; ++s) {
+            for (std::size_t i = 0; i < scan_points[s].size(); ++i) dynamic[s][i] |= moving[s][i];
+        }
+        stats_.moving_objects += motion.moving_objects;
+    }
     RaySet kept;
-    std::vector<Eigen::Vector3f> points;
     std::vector<Eigen::Vector3f> origins;
     std::size_t dropped = 0;
-    for (std::uint32_t s = 0; s < rays_.num_scans(); ++s) {
+    for (std::uint32_t s = 0; s < num_scans; ++s) {
         const std::size_t begin = rays_.first_ray(s), end = rays_.first_ray(s + 1);
-        points.clear();
+        std::vector<Eigen::Vector3f>& points = scan_points[s];
         origins.clear();
-        for (std::size_t r = begin; r < end; ++r) {
-            points.push_back(rays_.endpoint(r));
-            if (rays_.has_ray_origins()) origins.push_back(rays_.origin_of_ray(r));
+        if (rays_.has_ray_origins()) {
+            for (std::size_t r = begin; r < end; ++r) origins.push_back(rays_.origin_of_ray(r));
         }
         std::vector<std::uint32_t> voxel_begin = rays_.scan_voxel_begin(s);
-        const std::size_t first_group = rays_.group_at_or_after(begin);
-        // Each point's own votes (its voxel group's), then spread over compact objects.
-        std::vector<std::uint8_t> dynamic(points.size(), 0);
-        for_each_point_run(points.size(), voxel_begin, [&](std::size_t i, std::size_t run) {
-            dynamic[i] = is_dynamic(votes_[first_group + run], config_.dynamic) ? 1 : 0;
-        });
-        const DynamicObjectStats objects =
-            spread_dynamic_to_objects(points, dynamic, config_.dynamic.objects);
-        stats_.dynamic_objects += objects.objects_dynamic;
+        if (objects[s].object_of.size() == points.size()) {
+            stats_.dynamic_objects +=
+                spread_dynamic_to_objects(objects[s], dynamic[s], config_.dynamic.objects)
+                    .objects_dynamic;
+        }
+        const std::vector<std::uint8_t>& flags = dynamic[s];
         dropped += filter_voxel_grouped(
-            points, voxel_begin, [&](std::size_t i, std::size_t) { return !dynamic[i]; }, &origins);
+            points, voxel_begin, [&](std::size_t i, std::size_t) { return !flags[i]; }, &origins);
         kept.add_scan(rays_.origin_of_scan(s), points, voxel_begin, origins);
+        std::vector<Eigen::Vector3f>().swap(points);
     }
     rays_ = std::move(kept);
     votes_ = {};
@@ -154,6 +184,7 @@ void BatchMapper::finish_scans() {
     stats_.load_seconds += seconds_since(start);
 
     start = std::chrono::steady_clock::now();
+    std::vector<Eigen::Vector3f> points;
     for (std::uint32_t s = 0; s < rays_.num_scans(); ++s) {
         const std::size_t begin = rays_.first_ray(s), end = rays_.first_ray(s + 1);
         points.clear();

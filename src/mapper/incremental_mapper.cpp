@@ -278,7 +278,10 @@ bool IncrementalMapper::keeps_scan_images() const {
 std::size_t IncrementalMapper::vote_among_kept_scans() {
     const DynamicPointConfig& dynamic = config_.dynamic;
     const std::size_t n = window_.size();
-    if (!keeps_scan_images() || window_images_.size() != n) return 0;
+    const bool votes_on = keeps_scan_images() && window_images_.size() == n;
+    const bool motion_on =
+        dynamic.enabled && dynamic.motion.enabled && config_.incremental.consolidation_steps > 0;
+    if (!votes_on && !motion_on) return 0;
     const std::size_t kept =
         std::min<std::size_t>(n, static_cast<std::size_t>(config_.incremental.replay_frames));
     const std::size_t first = n - kept;
@@ -286,8 +289,10 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
     const auto far_frames = static_cast<std::size_t>(dynamic.far_vote_frames);
     // Fresh votes from both sides (the scans' own votes came from the scans before them only).
     std::vector<std::vector<FreeSpaceVotes>> votes(n);
-    for (std::size_t w = first; w < n; ++w) votes[w].resize(window_[w].points_map.size());
-    for (std::size_t v = first; v < n; ++v) {
+    for (std::size_t w = first; votes_on && w < n; ++w) {
+        votes[w].resize(window_[w].points_map.size());
+    }
+    for (std::size_t v = first; votes_on && v < n; ++v) {
         if (window_images_[v].second.empty()) continue;
         RangeImage image = window_images_[v].second;
         image.prepare_window(dynamic.window_bins);
@@ -302,20 +307,37 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
                                  apart > near_frames);
         });
     }
+    // The objects that move between the kept scans (moving_objects.hpp), all of them known now.
+    std::vector<std::vector<std::uint8_t>> moving;
+    if (motion_on) {
+        std::vector<const std::vector<Eigen::Vector3f>*> scans;
+        for (std::size_t w = first; w < n; ++w) scans.push_back(&window_[w].points_map);
+        MovingObjectStats motion;
+        moving = find_moving_points(scans, dynamic.objects, dynamic.motion, &motion);
+        stats_.moving_objects += motion.moving_objects;
+    }
     std::size_t dropped = 0;
     for (std::size_t w = first; w < n; ++w) {
         std::vector<Eigen::Vector3f>& points = window_[w].points_map;
         ScanObjects& scan_objects = window_objects_[w];
-        if (scan_objects.object_of.size() != points.size()) continue;
+        const bool with_objects = scan_objects.object_of.size() == points.size();
+        const bool with_votes = votes_on && with_objects;
+        const std::vector<std::uint8_t>* moved = motion_on ? &moving[w - first] : nullptr;
+        if (!with_votes && moved == nullptr) continue;
         // Only the points of compact objects: the far viewpoints vote free on ground and walls
         // seen at grazing angles, which the scans' own votes had kept (docs/movers.md).
-        std::vector<std::uint8_t> flags(points.size());
-        for (std::size_t i = 0; i < points.size(); ++i) {
+        std::vector<std::uint8_t> flags(points.size(), 0);
+        for (std::size_t i = 0; with_votes && i < points.size(); ++i) {
             flags[i] = scan_objects.object_of[i] != ScanObjects::kNoObject &&
                        is_dynamic(votes[w][i], dynamic);
         }
-        stats_.dynamic_objects +=
-            spread_dynamic_to_objects(scan_objects, flags, dynamic.objects).objects_dynamic;
+        if (with_votes) {
+            stats_.dynamic_objects +=
+                spread_dynamic_to_objects(scan_objects, flags, dynamic.objects).objects_dynamic;
+        }
+        if (moved != nullptr) {
+            for (std::size_t i = 0; i < points.size(); ++i) flags[i] |= (*moved)[i];
+        }
         if (!window_members_.empty()) drop_voxel_runs(window_members_[w], flags);
         dropped += drop_flagged(flags, points, window_votes_[w], window_normals_[w],
                                 window_[w].point_origins_map, scan_objects.object_of);

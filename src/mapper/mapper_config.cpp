@@ -291,7 +291,21 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"object_ground_cell_m", number(c.dynamic.objects.ground_cell_m, 1e-4, 100.0)},
           {"object_min_height_m", number(c.dynamic.objects.min_height_m, 0.0, 100.0)},
           {"object_max_extent_m", number(c.dynamic.objects.max_extent_m, 1e-4, 1000.0)},
-          {"object_max_height_m", number(c.dynamic.objects.max_height_m, 1e-4, 1000.0)}}},
+          {"object_max_height_m", number(c.dynamic.objects.max_height_m, 1e-4, 1000.0)},
+          {"motion", boolean(c.dynamic.motion.enabled)},
+          {"motion_voxel_height_m", number(c.dynamic.motion.voxel_height_m, 0.0, 100.0)},
+          {"motion_match_m", number(c.dynamic.motion.match_m, 1e-4, 100.0)},
+          {"motion_max_step_m", number(c.dynamic.motion.max_step_m, 1e-4, 1000.0)},
+          {"motion_search_m", number(c.dynamic.motion.search_m, 1e-3, 100.0)},
+          {"motion_min_step_m", number(c.dynamic.motion.min_step_m, 0.0, 1000.0)},
+          {"motion_min_points", number(c.dynamic.motion.min_points, 1, 100000000)},
+          {"motion_min_match_share", number(c.dynamic.motion.min_match_share, 0.0, 1.0)},
+          {"motion_min_gain", number(c.dynamic.motion.min_gain, 0.0, 1.0)},
+          {"motion_window_scans", number(c.dynamic.motion.window_scans, 1, 1000)},
+          {"motion_min_scan_share", number(c.dynamic.motion.min_scan_share, 0.0, 1.0)},
+          {"motion_max_still_share", number(c.dynamic.motion.max_still_share, 0.0, 1.0)},
+          {"motion_link_share", number(c.dynamic.motion.link_share, 0.0, 1.0)},
+          {"motion_max_gap_scans", number(c.dynamic.motion.max_gap_scans, 1, 1000)}}},
         {"bake",
          {{"voxel_size_m", number(c.bake.voxel_size_m, 0.0, 100.0)},
           {"half_width_voxels", number(c.bake.half_width_voxels, 1.0, 100.0)},
@@ -374,6 +388,10 @@ void apply_scale_free_defaults(MapperConfig& c) {
     if (c.resolved_scene() == ScenePreset::kObject &&
         !c.is_set("dynamic.object_min_dynamic_share")) {
         c.dynamic.objects.min_dynamic_share = 0.0f;
+    }
+    // Likewise the motion test: its steps are those of cars and people between scans.
+    if (c.resolved_scene() == ScenePreset::kObject && !c.is_set("dynamic.motion")) {
+        c.dynamic.motion.enabled = false;
     }
     // Outdoors a leaf finer than 0.2 m keeps the coarse levels: one more level per halving of
     // the leaf, so the coarsest cell stays 0.8 m (4 levels at 0.1 m). Measured on real scans

@@ -126,7 +126,8 @@ ScanObjects find_scan_objects(const std::vector<Eigen::Vector3f>& points_map,
             pack(cell(p.x(), config.ground_cell_m), cell(p.y(), config.ground_cell_m), 0));
         if (p.z() - ground < config.min_height_m) continue;
         const std::array<std::int64_t, 3> c = {
-            cell(p.x(), config.voxel_m), cell(p.y(), config.voxel_m), cell(p.z(), config.voxel_m)};
+            cell(p.x(), config.voxel_m), cell(p.y(), config.voxel_m),
+            cell(p.z(), config.voxel_height_m > 0.0f ? config.voxel_height_m : config.voxel_m)};
         auto [it, inserted] =
             voxels.emplace(pack(c[0], c[1], c[2]), static_cast<std::uint32_t>(voxel_cells.size()));
         if (inserted) voxel_cells.push_back(c);

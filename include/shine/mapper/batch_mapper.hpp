@@ -41,6 +41,9 @@ struct MappingStats {
     /// Objects of single scans dropped whole because enough of their points were dynamic
     /// (dynamic_objects.hpp).
     std::size_t dynamic_objects = 0;
+    /// Objects of single scans that moved between scans or lie on a moving object's track
+    /// (moving_objects.hpp); their points are dynamic.
+    std::size_t moving_objects = 0;
     double dynamic_seconds = 0.0;   ///< range images and free-space votes
     double allocate_seconds = 0.0;  ///< growing the octree
     double normals_seconds = 0.0;   ///< surface normals for the label correction

@@ -34,6 +34,9 @@ struct DynamicObjectConfig {
     int min_points = 5;          ///< smaller objects keep their points' own votes
     int min_dynamic_points = 3;  ///< and so do objects with fewer dynamic points
     float voxel_m = 0.3f;        ///< points in touching voxels of this size are one object
+    /// Height of the voxels; 0: voxel_m. Taller voxels join the returns of a far object, which
+    /// the beams sample further apart vertically than horizontally.
+    float voxel_height_m = 0.0f;
     float ground_cell_m = 2.0f;  ///< cells of the local ground height
     float min_height_m = 0.2f;   ///< points lower above the local ground are ground
     float max_extent_m = 8.0f;   ///< wider objects (horizontal diagonal) are structures

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "shine/sampling/dynamic_objects.hpp"
+#include "shine/sampling/moving_objects.hpp"
 #include "shine/sampling/range_image.hpp"
 
 namespace shine {
@@ -65,6 +66,9 @@ struct DynamicPointConfig {
     float far_min_free_share = 0.5f;
     /// Compact objects most of whose points are dynamic are dropped whole (dynamic_objects.hpp).
     DynamicObjectConfig objects;
+    /// Compact objects that move between consecutive scans, and their tracks, are dynamic whole
+    /// (moving_objects.hpp).
+    MovingObjectConfig motion;
 };
 
 /// The votes a point received: from the near scans (vote_frames) and the far ones.
