@@ -200,6 +200,10 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
     importance_ = ImportanceWeights(inc.importance, config_.octree.feature_dim);
     if (importance_.enabled()) trainer_->enable_anchors();
+    if (config_.dynamic.enabled && config_.dynamic.motion.enabled) {
+        past_motion_ =
+            std::make_unique<PastMotion>(config_.dynamic.objects, config_.dynamic.motion);
+    }
 }
 
 IncrementalMapper::~IncrementalMapper() = default;
@@ -367,6 +371,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     // after it vote on its points.
     RangeImage image;
     std::vector<FreeSpaceVotes> votes(current.points_map.size());
+    std::vector<std::uint8_t> moving;
     const bool objects = dynamic.objects.min_dynamic_share > 0.0f;
     tbb::parallel_invoke(
         [&] {
@@ -389,12 +394,24 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
         },
         [&] {
             if (objects) current_objects_ = find_scan_objects(current.points_map, dynamic.objects);
+        },
+        [&] {
+            // Objects that moved over the scans before (moving_objects.hpp), before they train.
+            if (past_motion_) {
+                MovingObjectStats motion;
+                moving = past_motion_->add_scan(current.points_map, &motion);
+                stats_.moving_objects += motion.moving_objects;
+            }
         });
     const auto dynamic_flags = [&](const ScanObjects* scan_objects,
-                                   const std::vector<FreeSpaceVotes>& point_votes) {
+                                   const std::vector<FreeSpaceVotes>& point_votes,
+                                   const std::vector<std::uint8_t>* also) {
         std::vector<std::uint8_t> flags(point_votes.size());
         for (std::size_t i = 0; i < point_votes.size(); ++i) {
             flags[i] = is_dynamic(point_votes[i], dynamic) ? 1 : 0;
+        }
+        if (also != nullptr && also->size() == flags.size()) {
+            for (std::size_t i = 0; i < flags.size(); ++i) flags[i] |= (*also)[i];
         }
         if (scan_objects) {
             stats_.dynamic_objects +=
@@ -403,7 +420,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
         return flags;
     };
     const std::vector<std::uint8_t> current_dynamic =
-        dynamic_flags(objects ? &current_objects_ : nullptr, votes);
+        dynamic_flags(objects ? &current_objects_ : nullptr, votes, &moving);
     if (current_members) drop_voxel_runs(*current_members, current_dynamic);
     frame.dynamic_dropped =
         drop_flagged(current_dynamic, current.points_map, current.point_origins_map,
@@ -424,7 +441,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
         ScanObjects& past_objects = window_objects_[w];
         const bool with_objects = objects && past_objects.object_of.size() == points.size();
         const std::vector<std::uint8_t> past_dynamic =
-            dynamic_flags(with_objects ? &past_objects : nullptr, past_votes);
+            dynamic_flags(with_objects ? &past_objects : nullptr, past_votes, nullptr);
         if (!window_members_.empty()) drop_voxel_runs(window_members_[w], past_dynamic);
         frame.dynamic_forgotten += drop_flagged(past_dynamic, points, past_votes, normals, origins,
                                                 past_objects.object_of);
@@ -686,6 +703,7 @@ void IncrementalMapper::release_training_state() {
     window_votes_ = {};
     window_objects_ = {};
     voters_ = {};
+    if (past_motion_) past_motion_->clear();
     window_images_ = {};
     spare_image_ = {};
     replay_ = ReplayRays();

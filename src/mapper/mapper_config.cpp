@@ -302,6 +302,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"motion_min_match_share", number(c.dynamic.motion.min_match_share, 0.0, 1.0)},
           {"motion_min_gain", number(c.dynamic.motion.min_gain, 0.0, 1.0)},
           {"motion_window_scans", number(c.dynamic.motion.window_scans, 1, 1000)},
+          {"motion_min_window_scans", number(c.dynamic.motion.min_window_scans, 1, 1000)},
           {"motion_min_scan_share", number(c.dynamic.motion.min_scan_share, 0.0, 1.0)},
           {"motion_max_still_share", number(c.dynamic.motion.max_still_share, 0.0, 1.0)},
           {"motion_link_share", number(c.dynamic.motion.link_share, 0.0, 1.0)},

@@ -260,6 +260,9 @@ void check(const MovingObjectConfig& c) {
     }
     if (c.min_points < 1) throw ConfigError("dynamic.motion_min_points must be at least 1");
     if (c.window_scans < 1) throw ConfigError("dynamic.motion_window_scans must be at least 1");
+    if (c.min_window_scans < 1) {
+        throw ConfigError("dynamic.motion_min_window_scans must be at least 1");
+    }
     if (c.max_gap_scans < 1) throw ConfigError("dynamic.motion_max_gap_scans must be at least 1");
 }
 
@@ -271,6 +274,84 @@ struct Velocity {
     Eigen::Vector2f step = Eigen::Vector2f::Zero();
     bool moving = false;
 };
+
+/// Points of an object the velocity test uses (evenly thinned).
+constexpr std::size_t kSearchPoints = 64;
+
+/// The velocity of an object of scan s (its points `sample`), from the cells of the scans
+/// s + k (table_at(k), null where there is none) for k up to window_scans away, or on the side
+/// before it only (`past_only`). The candidates are its best steps towards the next scan and
+/// from the scan before (where the object, unshifted, matches at most 1 - min_gain of its
+/// points); a candidate is refined on the window's scans and is the object's velocity when the
+/// object, moved at it, matches at least min_scan_share of the window's scans and, left in
+/// place, at most max_still_share of them.
+template <class TableAt>
+Velocity object_velocity(const std::vector<Eigen::Vector3f>& sample, const TableAt& table_at,
+                         bool past_only, const MovingObjectConfig& config) {
+    constexpr std::size_t kCandidates = 4;  // per neighbouring scan
+    const auto window = static_cast<std::ptrdiff_t>(config.window_scans);
+    const std::ptrdiff_t last = past_only ? -1 : window;
+    std::vector<Eigen::Vector2f> candidates;
+    for (int dir : {1, -1}) {
+        if (past_only && dir > 0) continue;
+        const CellTable* table = table_at(dir);
+        if (table == nullptr) continue;
+        if (match_share(sample, Eigen::Vector2f::Zero(), *table) > 1.0f - config.min_gain) {
+            continue;  // it is where it was
+        }
+        for (const StepMatch& coarse :
+             good_steps(sample, *table, 2.0f * config.search_m, kCandidates, config)) {
+            const Eigen::Vector2f fine = refine_step(
+                coarse.step, config.search_m, config.search_m,
+                [&](const Eigen::Vector2f& step) { return match_share(sample, step, *table); });
+            const Eigen::Vector2f v = static_cast<float>(dir) * fine;
+            if (std::none_of(candidates.begin(), candidates.end(), [&](const auto& c) {
+                    return (c - v).norm() < 0.5f * config.search_m;
+                })) {
+                candidates.push_back(v);
+            }
+        }
+    }
+    // The summed share of the scans up to `reach` away that match at velocity v.
+    const auto window_share = [&](const Eigen::Vector2f& v, std::ptrdiff_t reach) {
+        float sum = 0.0f;
+        for (std::ptrdiff_t k = -reach; k <= std::min(reach, last); ++k) {
+            const CellTable* table = k == 0 ? nullptr : table_at(k);
+            if (table != nullptr) sum += match_share(sample, static_cast<float>(k) * v, *table);
+        }
+        return sum;
+    };
+    Velocity result;
+    int best_matched = -1;
+    for (const Eigen::Vector2f& candidate : candidates) {
+        // Off by up to half the search grid, a velocity misses the scans a few away: refined on
+        // the two scans either side first, then on the whole window.
+        Eigen::Vector2f v =
+            refine_step(candidate, 0.6f * config.search_m, 0.2f * config.search_m,
+                        [&](const Eigen::Vector2f& u) { return window_share(u, 2); });
+        v = refine_step(v, 0.2f * config.search_m, 0.1f * config.search_m,
+                        [&](const Eigen::Vector2f& u) { return window_share(u, window); });
+        if (v.norm() < config.min_step_m) continue;
+        int matched = 0, still = 0, seen = 0;
+        for (std::ptrdiff_t k = -window; k <= last; ++k) {
+            const CellTable* table = k == 0 ? nullptr : table_at(k);
+            if (table == nullptr) continue;
+            ++seen;
+            matched +=
+                match_share(sample, static_cast<float>(k) * v, *table) >= config.min_match_share;
+            still += match_share(sample, Eigen::Vector2f::Zero(), *table) >= config.min_match_share;
+        }
+        const bool moves =
+            seen >= config.min_window_scans &&
+            static_cast<float>(matched) >= config.min_scan_share * static_cast<float>(seen) &&
+            static_cast<float>(still) <= config.max_still_share * static_cast<float>(seen);
+        if (moves && matched > best_matched) {
+            best_matched = matched;
+            result = {v, true};
+        }
+    }
+    return result;
+}
 
 /// find_moving_points over all of `scans_map`, counting in `stats` the scans [core_begin,
 /// core_end) only.
@@ -293,84 +374,18 @@ std::vector<std::vector<std::uint8_t>> moving_points_of(
     const auto in_range = [n](std::ptrdiff_t t) {
         return t >= 0 && t < static_cast<std::ptrdiff_t>(n);
     };
-    const auto window = static_cast<std::ptrdiff_t>(config.window_scans);
-
-    // 1. Each object's velocity. The candidates are its best steps towards the next scan and
-    // from the scan before (the object matches there, unshifted, on at most 1 - min_gain of its
-    // points); a candidate is refined on the window's scans and is the object's velocity when
-    // the object, moved at it, matches at least min_scan_share of the window's scans and, left
-    // in place, at most max_still_share.
-    constexpr std::size_t kSearchPoints = 64;
-    constexpr std::size_t kCandidates = 4;  // per neighbouring scan
+    // 1. Each object's velocity (object_velocity), from the scans on both sides.
     std::vector<std::vector<Velocity>> velocity(n);
     tbb::parallel_for(std::size_t(0), n, [&](std::size_t s) {
         const TrackScan& scan = *scans[s];
         const auto at = static_cast<std::ptrdiff_t>(s);
+        const auto table_at = [&](std::ptrdiff_t k) -> const CellTable* {
+            return in_range(at + k) ? &scans[static_cast<std::size_t>(at + k)]->table : nullptr;
+        };
         velocity[s].assign(scan.objects.num_objects, Velocity{});
         for (std::uint32_t o = 0; o < scan.objects.num_objects; ++o) {
-            const std::vector<Eigen::Vector3f> sample =
-                scan.points_of(*scans_map[s], o, kSearchPoints);
-            std::vector<Eigen::Vector2f> candidates;
-            for (int dir : {1, -1}) {
-                if (!in_range(at + dir)) continue;
-                const CellTable& table = scans[static_cast<std::size_t>(at + dir)]->table;
-                if (match_share(sample, Eigen::Vector2f::Zero(), table) > 1.0f - config.min_gain) {
-                    continue;  // it is where it was
-                }
-                for (const StepMatch& coarse :
-                     good_steps(sample, table, 2.0f * config.search_m, kCandidates, config)) {
-                    const Eigen::Vector2f fine =
-                        refine_step(coarse.step, config.search_m, config.search_m,
-                                    [&](const Eigen::Vector2f& step) {
-                                        return match_share(sample, step, table);
-                                    });
-                    const Eigen::Vector2f v = static_cast<float>(dir) * fine;
-                    if (std::none_of(candidates.begin(), candidates.end(), [&](const auto& c) {
-                            return (c - v).norm() < 0.5f * config.search_m;
-                        })) {
-                        candidates.push_back(v);
-                    }
-                }
-            }
-            // The summed share of the scans up to `reach` away that match at velocity v.
-            const auto window_share = [&](const Eigen::Vector2f& v, std::ptrdiff_t reach) {
-                float sum = 0.0f;
-                for (std::ptrdiff_t k = -reach; k <= reach; ++k) {
-                    if (k == 0 || !in_range(at + k)) continue;
-                    sum += match_share(sample, static_cast<float>(k) * v,
-                                       scans[static_cast<std::size_t>(at + k)]->table);
-                }
-                return sum;
-            };
-            int best_matched = -1;
-            for (const Eigen::Vector2f& candidate : candidates) {
-                // Off by up to half the search grid, a velocity misses the scans a few away:
-                // refined on the two scans either side first, then on the whole window.
-                Eigen::Vector2f v =
-                    refine_step(candidate, 0.6f * config.search_m, 0.2f * config.search_m,
-                                [&](const Eigen::Vector2f& u) { return window_share(u, 2); });
-                v = refine_step(v, 0.2f * config.search_m, 0.1f * config.search_m,
-                                [&](const Eigen::Vector2f& u) { return window_share(u, window); });
-                if (v.norm() < config.min_step_m) continue;
-                int matched = 0, still = 0, seen = 0;
-                for (std::ptrdiff_t k = -window; k <= window; ++k) {
-                    if (k == 0 || !in_range(at + k)) continue;
-                    const CellTable& table = scans[static_cast<std::size_t>(at + k)]->table;
-                    ++seen;
-                    matched += match_share(sample, static_cast<float>(k) * v, table) >=
-                               config.min_match_share;
-                    still += match_share(sample, Eigen::Vector2f::Zero(), table) >=
-                             config.min_match_share;
-                }
-                const bool moves =
-                    static_cast<float>(matched) >=
-                        config.min_scan_share * static_cast<float>(seen) &&
-                    static_cast<float>(still) <= config.max_still_share * static_cast<float>(seen);
-                if (moves && matched > best_matched) {
-                    best_matched = matched;
-                    velocity[s][o] = {v, true};
-                }
-            }
+            velocity[s][o] = object_velocity(scan.points_of(*scans_map[s], o, kSearchPoints),
+                                             table_at, false, config);
         }
     });
 
@@ -503,5 +518,68 @@ std::vector<std::vector<std::uint8_t>> find_moving_points(
     if (stats != nullptr) *stats = local;
     return moving;
 }
+
+struct PastMotion::State {
+    DynamicObjectConfig segmentation;
+    MovingObjectConfig config;
+    /// The last window_scans scans' points and objects, the newest last.
+    std::deque<std::pair<std::vector<Eigen::Vector3f>, std::unique_ptr<TrackScan>>> past;
+};
+
+PastMotion::PastMotion(const DynamicObjectConfig& objects, const MovingObjectConfig& config)
+    : state_(std::make_unique<State>()) {
+    check(config);
+    state_->segmentation = objects;
+    state_->segmentation.min_points = config.min_points;
+    state_->segmentation.voxel_height_m = config.voxel_height_m;
+    state_->config = config;
+}
+
+PastMotion::~PastMotion() = default;
+PastMotion::PastMotion(PastMotion&&) noexcept = default;
+PastMotion& PastMotion::operator=(PastMotion&&) noexcept = default;
+
+std::vector<std::uint8_t> PastMotion::add_scan(const std::vector<Eigen::Vector3f>& points_map,
+                                               MovingObjectStats* stats) {
+    State& state = *state_;
+    const MovingObjectConfig& config = state.config;
+    std::vector<std::uint8_t> moving(points_map.size(), 0);
+    MovingObjectStats local;
+    if (!config.enabled) {
+        if (stats != nullptr) *stats = local;
+        return moving;
+    }
+    auto scan = std::make_unique<TrackScan>(
+        points_map, find_scan_objects(points_map, state.segmentation), config.match_m);
+    const std::size_t n = state.past.size();
+    const auto table_at = [&](std::ptrdiff_t k) -> const CellTable* {
+        const std::ptrdiff_t index = static_cast<std::ptrdiff_t>(n) + k;  // k < 0
+        return k < 0 && index >= 0 ? &state.past[static_cast<std::size_t>(index)].second->table
+                                   : nullptr;
+    };
+    std::vector<Velocity> velocity(scan->objects.num_objects);
+    tbb::parallel_for(std::uint32_t(0), scan->objects.num_objects, [&](std::uint32_t o) {
+        velocity[o] =
+            object_velocity(scan->points_of(points_map, o, kSearchPoints), table_at, true, config);
+    });
+    local.objects = scan->objects.num_objects;
+    for (std::uint32_t o = 0; o < scan->objects.num_objects; ++o) {
+        if (!velocity[o].moving) continue;
+        ++local.moved;
+        ++local.moving_objects;
+        for (std::uint32_t j = scan->begin[o]; j < scan->begin[o + 1]; ++j) {
+            moving[scan->order[j]] = 1;
+            ++local.points;
+        }
+    }
+    state.past.emplace_back(points_map, std::move(scan));
+    while (state.past.size() > static_cast<std::size_t>(config.window_scans)) {
+        state.past.pop_front();
+    }
+    if (stats != nullptr) *stats = local;
+    return moving;
+}
+
+void PastMotion::clear() { state_->past.clear(); }
 
 }  // namespace shine

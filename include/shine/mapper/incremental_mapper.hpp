@@ -228,6 +228,8 @@ class IncrementalMapper {
     /// the spreading off; dynamic_objects.hpp).
     std::deque<ScanObjects> window_objects_;
     ScanObjects current_objects_;  ///< the current scan's, until it joins the window
+    /// The motion test on the scans before each one (dynamic.motion; null when off).
+    std::unique_ptr<PastMotion> past_motion_;
     /// Range images of the last dynamic.vote_frames scans, with their map-to-sensor transforms.
     std::deque<std::pair<Eigen::Isometry3f, RangeImage>> voters_;
     /// With end votes (keeps_scan_images()): each window scan's range image (not prepared) and

@@ -27,6 +27,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "shine/sampling/dynamic_objects.hpp"
@@ -52,6 +53,7 @@ struct MovingObjectConfig {
     /// unshifted.
     float min_gain = 0.3f;
     int window_scans = 5;          ///< scans on either side that test a velocity
+    int min_window_scans = 3;      ///< fewer scans in the window (a sequence's start) test none
     float min_scan_share = 0.6f;   ///< of them, matched by the object moved at its velocity
     float max_still_share = 0.3f;  ///< and at most this many by the object left in place
     float link_share = 0.6f;       ///< of an object's points that land on the moving object (reach)
@@ -76,5 +78,29 @@ std::vector<std::vector<std::uint8_t>> find_moving_points(
     const std::vector<const std::vector<Eigen::Vector3f>*>& scans_map,
     const DynamicObjectConfig& objects, const MovingObjectConfig& config,
     MovingObjectStats* stats = nullptr);
+
+/// The motion test while the scans arrive (incremental mode): each new scan's objects against
+/// the window_scans scans before it only (step 1 on one side; no reach), so that a mover's points
+/// leave before they train. Holds the last window_scans scans' points and cells.
+class PastMotion {
+  public:
+    /// Throws ConfigError for settings out of range.
+    PastMotion(const DynamicObjectConfig& objects, const MovingObjectConfig& config);
+    ~PastMotion();
+    PastMotion(PastMotion&&) noexcept;
+    PastMotion& operator=(PastMotion&&) noexcept;
+
+    /// Flags (1) the points of `points_map`, the newest scan in the map frame, that lie on an
+    /// object moving by the scans before it (at least min_window_scans of them), and keeps the
+    /// scan for the scans after it.
+    std::vector<std::uint8_t> add_scan(const std::vector<Eigen::Vector3f>& points_map,
+                                       MovingObjectStats* stats = nullptr);
+    /// Forgets the scans kept.
+    void clear();
+
+  private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
 
 }  // namespace shine
