@@ -200,7 +200,8 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
     trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
     importance_ = ImportanceWeights(inc.importance, config_.octree.feature_dim);
     if (importance_.enabled()) trainer_->enable_anchors();
-    if (config_.dynamic.enabled && config_.dynamic.motion.enabled) {
+    if (config_.dynamic.enabled && config_.dynamic.motion.enabled &&
+        config_.dynamic.motion.while_mapping) {
         past_motion_ =
             std::make_unique<PastMotion>(config_.dynamic.objects, config_.dynamic.motion);
     }
@@ -311,6 +312,14 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
                                  apart > near_frames);
         });
     }
+    // The images have cast their votes: their memory, and the pages the heap holds free, go back
+    // before the motion test's cells are built. Scans added after this bring their own images;
+    // the ones emptied here vote no more.
+    for (auto& [T_sensor_map, image] : window_images_) image = RangeImage();
+    spare_image_ = RangeImage();
+#if defined(__GLIBC__)
+    malloc_trim(0);
+#endif
     // The objects that move between the kept scans (moving_objects.hpp), all of them known now.
     std::vector<std::vector<std::uint8_t>> moving;
     if (motion_on) {

@@ -293,6 +293,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"object_max_extent_m", number(c.dynamic.objects.max_extent_m, 1e-4, 1000.0)},
           {"object_max_height_m", number(c.dynamic.objects.max_height_m, 1e-4, 1000.0)},
           {"motion", boolean(c.dynamic.motion.enabled)},
+          {"motion_while_mapping", boolean(c.dynamic.motion.while_mapping)},
           {"motion_voxel_height_m", number(c.dynamic.motion.voxel_height_m, 0.0, 100.0)},
           {"motion_match_m", number(c.dynamic.motion.match_m, 1e-4, 100.0)},
           {"motion_max_step_m", number(c.dynamic.motion.max_step_m, 1e-4, 1000.0)},

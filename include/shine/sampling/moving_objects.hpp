@@ -40,6 +40,10 @@ namespace shine {
 /// movers, the streets without and the real walk (docs/movers.md).
 struct MovingObjectConfig {
     bool enabled = true;  ///< false: no point is dynamic by its motion
+    /// Incremental mode: also test each new scan against the scans before it while it maps
+    /// (PastMotion). Off by default: on the 4 km city, which has no movers, it found 13,540
+    /// objects moving, and the odometry's ATE grew from 4.0 to 6.1 cm (docs/movers.md).
+    bool while_mapping = false;
     /// Height of the segmentation's voxels (DynamicObjectConfig::voxel_height_m): a 64-beam
     /// sensor's rows lie 0.42 m apart at 57 m.
     float voxel_height_m = 0.5f;
