@@ -19,12 +19,15 @@ struct GhostRun {
     nlohmann::json stats;
 };
 
-/// Maps `data` coarsely (0.4 m leaves, 150 steps) with the filter `on`/`off` (and the YAML
-/// `config` if not empty) and scores the mesh against the static street with the movers' swept
-/// volumes.
+/// The test maps' settings: coarse (0.4 m leaves, 150 steps).
+const std::string kCoarse = "--leaf-size-m 0.4 --iterations 150 ";
+
+/// Maps `data` with `settings` (coarse by default, "" for the defaults) and the filter
+/// `on`/`off` (and the YAML `config` if not empty) and scores the mesh against the static street
+/// with the movers' swept volumes.
 GhostRun map_and_score(const fs::path& data, const fs::path& dir, const std::string& filter,
                        const std::string& name = "", const std::string& config = "",
-                       const std::string& mode = "batch") {
+                       const std::string& mode = "batch", const std::string& settings = kCoarse) {
     GhostRun run;
     const fs::path out = dir / ("map_" + filter + name);
     std::string config_arg;
@@ -33,10 +36,9 @@ GhostRun map_and_score(const fs::path& data, const fs::path& dir, const std::str
         std::ofstream(config_path) << config;
         config_arg = " -c '" + config_path.string() + "'";
     }
-    const CliResult m = run_shine("map '" + data.string() + "' -o '" + out.string() +
-                                      "' --leaf-size-m 0.4 --iterations 150 --threads 2 -q "
-                                      "--no-eval --mode " +
-                                      mode + " --dynamic-filter " + filter + config_arg,
+    const CliResult m = run_shine("map '" + data.string() + "' -o '" + out.string() + "' " +
+                                      settings + "--threads 2 -q --no-eval --mode " + mode +
+                                      " --dynamic-filter " + filter + config_arg,
                                   dir);
     EXPECT_EQ(m.exit_code, 0) << m.output;
     const CliResult e = run_shine("eval --pred '" + (out / "mesh.ply").string() + "' --ref '" +
@@ -113,29 +115,10 @@ TEST(CliDynamicFilter, MovingObjectsGoWhereNoRaySeesThrough) {
     const CliResult sim =
         run_shine("simulate -o '" + data.string() + "' --movers 20 --no-progress", dir);
     ASSERT_EQ(sim.exit_code, 0) << sim.output;
-    const auto map_and_score_full = [&](const std::string& name, const std::string& config) {
-        GhostRun run;
-        const fs::path out = dir / ("map" + name);
-        const fs::path config_path = dir / ("config" + name + ".yaml");
-        std::ofstream(config_path) << config;
-        const CliResult m =
-            run_shine("map '" + data.string() + "' -o '" + out.string() +
-                          "' --threads 2 -q --no-eval -c '" + config_path.string() + "'",
-                      dir);
-        EXPECT_EQ(m.exit_code, 0) << m.output;
-        const CliResult e = run_shine("eval --pred '" + (out / "mesh.ply").string() + "' --ref '" +
-                                          (data / "gt_mesh.ply").string() + "' --movers '" +
-                                          (data / "simulation.json").string() + "' --json",
-                                      dir);
-        EXPECT_EQ(e.exit_code, 0) << e.output;
-        const nlohmann::json metrics = nlohmann::json::parse(e.output);
-        run.ghost_area_m2 = metrics["ghost"]["ghost_area_m2"].get<double>();
-        run.fscore = metrics["fscore"].get<double>();
-        run.stats = read_json(out / "stats.json");
-        return run;
-    };
-    const GhostRun votes = map_and_score_full("_votes", "dynamic:\n  motion: false\n");
-    const GhostRun motion = map_and_score_full("_motion", "dynamic:\n  motion: true\n");
+    const GhostRun votes =
+        map_and_score(data, dir, "on", "_votes", "dynamic:\n  motion: false\n", "batch", "");
+    const GhostRun motion =
+        map_and_score(data, dir, "on", "_motion", "dynamic:\n  motion: true\n", "batch", "");
     std::printf("ghosts %.1f -> %.1f m^2, F %.4f -> %.4f, %s moving objects\n", votes.ghost_area_m2,
                 motion.ghost_area_m2, votes.fscore, motion.fscore,
                 motion.stats["dynamic"]["moving_objects"].dump().c_str());

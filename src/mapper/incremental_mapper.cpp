@@ -286,7 +286,6 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
     const bool votes_on = keeps_scan_images() && window_images_.size() == n;
     const bool motion_on =
         dynamic.enabled && dynamic.motion.enabled && config_.incremental.consolidation_steps > 0;
-    if (!votes_on && !motion_on) return 0;
     const std::size_t kept =
         std::min<std::size_t>(n, static_cast<std::size_t>(config_.incremental.replay_frames));
     const std::size_t first = n - kept;
@@ -312,14 +311,16 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
                                  apart > near_frames);
         });
     }
-    // The images have cast their votes: their memory, and the pages the heap holds free, go back
-    // before the motion test's cells are built. Scans added after this bring their own images;
-    // the ones emptied here vote no more.
+    // The images have cast their votes, and the motion test's cells and the consolidation's rays
+    // are among the run's largest arrays: the images' memory, and the pages the heap holds free,
+    // go back first. Scans added after this bring their own images; the ones emptied here vote
+    // no more.
     for (auto& [T_sensor_map, image] : window_images_) image = RangeImage();
     spare_image_ = RangeImage();
 #if defined(__GLIBC__)
     malloc_trim(0);
 #endif
+    if (!votes_on && !motion_on) return 0;
     // The objects that move between the kept scans (moving_objects.hpp), all of them known now.
     std::vector<std::vector<std::uint8_t>> moving;
     if (motion_on) {
@@ -539,14 +540,6 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     const auto vote_start = std::chrono::steady_clock::now();
     consolidation_.dynamic_dropped = vote_among_kept_scans();
     consolidation_.vote_seconds = seconds_since(vote_start);
-    // The images have cast their votes, and the consolidation's rays are among the run's largest
-    // arrays: the images' memory, and the pages the heap holds free, go back first. Scans added
-    // after this bring their own images; the ones emptied here vote no more.
-    for (auto& [T_sensor_map, image] : window_images_) image = RangeImage();
-    spare_image_ = RangeImage();
-#if defined(__GLIBC__)
-    malloc_trim(0);
-#endif
     // The kept scans: every point of each, grouped by voxel, or the points their steps used.
     RaySet every_point;
     const RaySet* kept_rays = &every_point;

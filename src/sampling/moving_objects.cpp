@@ -269,6 +269,15 @@ void check(const MovingObjectConfig& c) {
 /// Scans processed at once (their margins aside).
 constexpr std::size_t kChunkScans = 64;
 
+/// The segmentation the test uses: `objects` with the test's min_points and voxel height.
+DynamicObjectConfig segmentation_of(const DynamicObjectConfig& objects,
+                                    const MovingObjectConfig& config) {
+    DynamicObjectConfig segmentation = objects;
+    segmentation.min_points = config.min_points;
+    segmentation.voxel_height_m = config.voxel_height_m;
+    return segmentation;
+}
+
 /// An object's velocity (metres a scan), if the window found one.
 struct Velocity {
     Eigen::Vector2f step = Eigen::Vector2f::Zero();
@@ -363,9 +372,7 @@ std::vector<std::vector<std::uint8_t>> moving_points_of(
     std::vector<std::vector<std::uint8_t>> moving(n);
     for (std::size_t s = 0; s < n; ++s) moving[s].assign(scans_map[s]->size(), 0);
     if (n < 2) return moving;
-    DynamicObjectConfig segmentation = objects;
-    segmentation.min_points = config.min_points;
-    segmentation.voxel_height_m = config.voxel_height_m;
+    const DynamicObjectConfig segmentation = segmentation_of(objects, config);
     std::vector<std::unique_ptr<TrackScan>> scans(n);
     tbb::parallel_for(std::size_t(0), n, [&](std::size_t s) {
         scans[s] = std::make_unique<TrackScan>(
@@ -529,9 +536,7 @@ struct PastMotion::State {
 PastMotion::PastMotion(const DynamicObjectConfig& objects, const MovingObjectConfig& config)
     : state_(std::make_unique<State>()) {
     check(config);
-    state_->segmentation = objects;
-    state_->segmentation.min_points = config.min_points;
-    state_->segmentation.voxel_height_m = config.voxel_height_m;
+    state_->segmentation = segmentation_of(objects, config);
     state_->config = config;
 }
 

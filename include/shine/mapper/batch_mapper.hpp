@@ -41,8 +41,8 @@ struct MappingStats {
     /// Objects of single scans dropped whole because enough of their points were dynamic
     /// (dynamic_objects.hpp).
     std::size_t dynamic_objects = 0;
-    /// Objects of single scans that moved between scans or lie on a moving object's track
-    /// (moving_objects.hpp); their points are dynamic.
+    /// Objects of single scans that move over the scans around them or lie where a moving one
+    /// is predicted (moving_objects.hpp); their points are dynamic.
     std::size_t moving_objects = 0;
     double dynamic_seconds = 0.0;   ///< range images and free-space votes
     double allocate_seconds = 0.0;  ///< growing the octree

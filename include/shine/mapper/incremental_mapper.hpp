@@ -190,7 +190,10 @@ class IncrementalMapper {
     /// range images, from both sides, near (vote_frames) and far (up to far_vote_frames), as batch
     /// mode's votes are. Of the points those votes make dynamic, those of compact objects are
     /// dropped (their objects whole, voxel groups with their leads); ground and structures keep
-    /// theirs, since far viewpoints see them at grazing angles. Returns the points dropped.
+    /// theirs, since far viewpoints see them at grazing angles. With dynamic.motion, the points
+    /// of the kept scans' moving objects (moving_objects.hpp) are dropped too. Releases the
+    /// scans' range images (and hands the heap's free pages back) after the votes, in any case.
+    /// Returns the points dropped.
     std::size_t vote_among_kept_scans();
     /// True when the window keeps every point of its scans (preprocess.voxel_points all, with
     /// thinning on): window_members_.

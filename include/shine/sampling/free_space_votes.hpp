@@ -66,8 +66,8 @@ struct DynamicPointConfig {
     float far_min_free_share = 0.5f;
     /// Compact objects most of whose points are dynamic are dropped whole (dynamic_objects.hpp).
     DynamicObjectConfig objects;
-    /// Compact objects that move between consecutive scans, and their tracks, are dynamic whole
-    /// (moving_objects.hpp).
+    /// Compact objects that move at a steady velocity over the scans around them, and the objects
+    /// where they are predicted, are dynamic whole (moving_objects.hpp).
     MovingObjectConfig motion;
 };
 
