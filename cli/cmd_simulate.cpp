@@ -92,6 +92,7 @@ int run_route(const SimulateOptions& options, const sim::SimulationConfig& stree
         config.trajectory.frame_spacing_m = street.trajectory.frame_spacing_m;
     }
     config.lidar = street.lidar;
+    config.movers = street.movers;
     config.origin_offset_world_m = street.origin_offset_world_m;
     config.show_progress = street.show_progress;
     const sim::RouteSimulationSummary result =
@@ -99,15 +100,18 @@ int run_route(const SimulateOptions& options, const sim::SimulationConfig& stree
     const sim::SimulationSummary& summary = result.sequence;
     std::printf(
         "wrote %s: a %.3f km drive through a city of %zu street blocks and %zu junctions "
-        "(loop %.3f km, then %.0f m again through the first street): %d scans (%zu points, "
+        "(loop %.3f km, then %.0f m again through the first street)%s: %d scans (%zu points, "
         "%zu..%zu per scan), poses.txt, gt_mesh.ply (%zu triangles, %zu observed), "
         "simulation.json, README.txt in %.1f s (city %.1f s, ray-cast index %.1f s)\n",
         options.out_dir.c_str(), result.route_length_m / 1000.0, result.num_streets,
         result.num_junctions, result.loop_length_m / 1000.0,
-        result.route_length_m - result.loop_length_m, summary.num_frames, summary.total_points,
-        summary.min_points_per_scan, summary.max_points_per_scan, summary.num_triangles,
-        summary.num_observed_triangles, summary.seconds, result.scene_seconds,
-        result.index_seconds);
+        result.route_length_m - result.loop_length_m,
+        result.num_movers > 0
+            ? (" with " + std::to_string(result.num_movers) + " movers (simulation.json)").c_str()
+            : "",
+        summary.num_frames, summary.total_points, summary.min_points_per_scan,
+        summary.max_points_per_scan, summary.num_triangles, summary.num_observed_triangles,
+        summary.seconds, result.scene_seconds, result.index_seconds);
     return 0;
 }
 
@@ -136,10 +140,10 @@ int run_simulate(const SimulateOptions& options) {
             "--motion-distortion moves the sensor during each sweep of the street's drive: it "
             "cannot be combined with --scene object or --route-km");
     }
-    if (c.movers.num_movers > 0 && (options.scene == "object" || options.route_requested)) {
+    if (c.movers.num_movers > 0 && options.scene == "object") {
         throw ConfigError(
             "--movers puts cars, cyclists and pedestrians on the street: it cannot "
-            "be combined with --scene object or --route-km");
+            "be combined with --scene object");
     }
     if (options.scene == "object") return run_object(options);
     if (options.max_edge_given && !(c.scene.max_edge_length_m >= 0.02)) {
@@ -226,7 +230,8 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
                     "oncoming, one parked then leaving), cyclists and pedestrians on the "
                     "sidewalks; each ray sees them at its own time (scan k at k * 0.1 s, 0.1 s "
                     "sweep); gt_mesh.ply stays static, simulation.json lists their paths "
-                    "(docs/movers.md)")
+                    "(docs/movers.md). With --route-km: N movers per 100 m of straight drive, "
+                    "each present while the sensor passes")
         ->check(CLI::Range(0, 1000))
         ->capture_default_str();
     cmd->add_flag("--motion-distortion", c.motion_distortion,

@@ -71,6 +71,35 @@ TEST(MovingScene, EachRayOfAScanSeesItsOwnTime) {
     EXPECT_NEAR(late.points_sensor[0].x(), 20.0, 1e-5);
 }
 
+TEST(MovingScene, AMoverIsThereOnlyBetweenItsFirstAndLastWaypoint) {
+    const TriangleMesh static_mesh = wall();
+    const RayCaster caster(static_mesh);
+    MoverTracks tracks;
+    MoverTrack car;  // stands across the ray along +x from t = 1 to t = 2 s
+    car.waypoints = {{1.0, {10.0, 0.0, 0.0}, 0.0}, {2.0, {10.0, 0.0, 0.0}, 0.0}};
+    tracks.movers = {car};
+    const MovingScene scene(caster, tracks);
+    const Eigen::Vector3d origin(0.0, 0.0, 0.75);
+    const Eigen::Vector3d ahead = Eigen::Vector3d::UnitX();
+    EXPECT_NEAR(scene.cast(origin, ahead, 0.0, 100.0, 0.99).distance_m, 20.0, kTolM);
+    EXPECT_NEAR(scene.cast(origin, ahead, 0.0, 100.0, 1.0).distance_m, 7.75, kTolM);
+    EXPECT_NEAR(scene.cast(origin, ahead, 0.0, 100.0, 2.0).distance_m, 7.75, kTolM);
+    EXPECT_NEAR(scene.cast(origin, ahead, 0.0, 100.0, 2.01).distance_m, 20.0, kTolM);
+    // A scan's selection holds the movers present during its sweep and within its range only.
+    EXPECT_EQ(scene.select(origin, 80.0, 0.0, 0.9).movers().size(), 0u);
+    EXPECT_EQ(scene.select(origin, 80.0, 0.95, 1.05).movers().size(), 1u);
+    EXPECT_EQ(scene.select(origin, 80.0, 2.05, 3.0).movers().size(), 0u);
+    EXPECT_EQ(scene.select({200.0, 0.0, 0.75}, 80.0, 1.0, 2.0).movers().size(), 0u);
+    // A path that passes by between its waypoints is within range.
+    MoverTracks passing;
+    MoverTrack through = car;
+    through.waypoints = {{0.0, {-500.0, 0.0, 0.0}, 0.0}, {10.0, {500.0, 0.0, 0.0}, 0.0}};
+    passing.movers = {through};
+    const MovingScene passing_scene(caster, passing);
+    EXPECT_EQ(passing_scene.select(origin, 80.0, 0.0, 10.0).movers().size(), 1u);
+    EXPECT_EQ(passing_scene.select(origin, 80.0, 0.0, 3.0).movers().size(), 0u);
+}
+
 TEST(MovingScene, WithoutMoversTheScanIsTheStaticOne) {
     const TriangleMesh static_mesh = wall();
     const RayCaster caster(static_mesh);

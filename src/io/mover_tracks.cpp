@@ -133,6 +133,11 @@ Eigen::Isometry3d MoverTrack::T_world_body(double time_s) const {
     return T;
 }
 
+bool MoverTrack::present(double time_s) const {
+    return !waypoints.empty() && time_s >= waypoints.front().time_s &&
+           time_s <= waypoints.back().time_s;
+}
+
 Eigen::AlignedBox3d MoverTrack::box_body() const {
     return {Eigen::Vector3d(-0.5 * size_m.x(), -0.5 * size_m.y(), 0.0),
             Eigen::Vector3d(0.5 * size_m.x(), 0.5 * size_m.y(), size_m.z())};

@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -34,11 +35,11 @@ enum Stream : std::uint64_t { kTrajectory = 0x100, kNoise = 0x200, kMovers = 0x3
 using sequence_internal::format_frame;
 using sequence_internal::json_number;
 
-/// Closest hit of one ray; only a MovingScene uses the ray's time.
+/// Closest hit of one ray; only movers use the ray's time.
 template <class Caster>
 RayHit cast_ray(const Caster& caster, const Eigen::Vector3d& origin_world,
                 const Eigen::Vector3d& direction_world, double max_range_m, double time_s) {
-    if constexpr (std::is_same_v<Caster, MovingScene>) {
+    if constexpr (std::is_same_v<Caster, MovingSceneSelection>) {
         return caster.cast(origin_world, direction_world, 0.0, max_range_m, time_s);
     } else {
         (void)time_s;
@@ -46,7 +47,8 @@ RayHit cast_ray(const Caster& caster, const Eigen::Vector3d& origin_world,
     }
 }
 
-/// Casts the rays of one scan against `caster` (a RayCaster, a BlockSelection or a MovingScene),
+/// Casts the rays of one scan against `caster` (a RayCaster, a BlockSelection or a
+/// MovingSceneSelection),
 /// in parallel; the range noise of ray i is drawn from a generator seeded by (noise_seed, i). The
 /// ray at azimuth step j is cast at time scan_time_s + sweep_s * j / azimuth_steps.
 /// With `step_poses` (one per azimuth step) the ray of step j leaves from step_poses[j] and the
@@ -177,8 +179,10 @@ LidarScan simulate_scan(const MovingScene& scene, const LidarConfig& config,
                         const Eigen::Isometry3d& T_world_sensor, std::uint64_t noise_seed,
                         double scan_time_s) {
     validate(config);
-    return cast_scan(scene, config, T_world_sensor, noise_seed, scan_time_s,
-                     scene.tracks().sweep_s);
+    const double sweep_s = scene.tracks().sweep_s;
+    const MovingSceneSelection near = scene.select(T_world_sensor.translation(), config.max_range_m,
+                                                   scan_time_s, scan_time_s + sweep_s);
+    return cast_scan(near, config, T_world_sensor, noise_seed, scan_time_s, sweep_s);
 }
 
 LidarScan simulate_scan(const RayCaster& caster, const LidarConfig& config,
@@ -193,7 +197,15 @@ LidarScan simulate_scan(const MovingScene& scene, const LidarConfig& config,
                         const SweepMotion& motion, std::uint64_t noise_seed, double scan_time_s) {
     validate(config);
     check_motion(config, motion);
-    return cast_scan(scene, config, motion.T_world_sensor.front(), noise_seed, scan_time_s,
+    // Every ray leaves from within the sweep's path: the selection's radius covers it.
+    const Eigen::Vector3d first_m = motion.T_world_sensor.front().translation();
+    double travel_m = 0.0;
+    for (const Eigen::Isometry3d& T : motion.T_world_sensor) {
+        travel_m = std::max(travel_m, (T.translation() - first_m).norm());
+    }
+    const MovingSceneSelection near = scene.select(first_m, config.max_range_m + travel_m,
+                                                   scan_time_s, scan_time_s + motion.sweep_s);
+    return cast_scan(near, config, motion.T_world_sensor.front(), noise_seed, scan_time_s,
                      motion.sweep_s, &motion.T_world_sensor);
 }
 

@@ -15,6 +15,8 @@
 #include "shine/io/ply.hpp"
 #include "shine/sim/block_ray_caster.hpp"
 #include "shine/sim/city_scene.hpp"
+#include "shine/sim/moving_scene.hpp"
+#include "shine/sim/route_movers.hpp"
 #include "sim_random.hpp"
 
 namespace shine::sim {
@@ -25,7 +27,7 @@ using sequence_internal::format_frame;
 using sequence_internal::json_number;
 
 /// Independent random streams (the city and the drive use streams of their own).
-enum Stream : std::uint64_t { kNoise = 0x200 };
+enum Stream : std::uint64_t { kNoise = 0x200, kMovers = 0x300 };
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -48,6 +50,7 @@ void validate(const RouteSimulationConfig& config) {
     validate(config.city);
     validate(config.trajectory);
     validate(config.lidar);
+    validate(config.movers);
 }
 
 RouteSimulationSummary simulate_route_sequence(const RouteSimulationConfig& config,
@@ -80,18 +83,30 @@ RouteSimulationSummary simulate_route_sequence(const RouteSimulationConfig& conf
     ensure_directory(velodyne_dir);
     sequence_internal::remove_stale_scans(velodyne_dir, num_frames);
 
+    MoverTracks movers;
     {
         // The BVHs live only while scanning: writing gt_mesh.ply needs a buffer of the file's size.
         phase_start = std::chrono::steady_clock::now();
         const BlockRayCaster caster(mesh, city.blocks, config.show_progress);
         result.index_seconds = seconds_since(phase_start);
-        sequence_internal::simulate_and_write_scans(
-            caster, config.lidar, poses,
-            [&](int frame) {
-                return derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame));
-            },
-            config.origin_offset_world_m, config.show_progress, out_dir, mesh, summary);
+        const auto noise_seed = [&](int frame) {
+            return derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame));
+        };
+        if (config.movers.num_movers > 0) {
+            movers = make_route_movers(config.movers, route, config.trajectory, num_frames,
+                                       obstacle_footprints(city.scene),
+                                       derive_seed(config.seed, kMovers));
+            const MovingScene moving(caster, movers);
+            sequence_internal::simulate_and_write_scans(
+                moving, config.lidar, poses, noise_seed, config.origin_offset_world_m,
+                config.show_progress, out_dir, mesh, summary);
+        } else {
+            sequence_internal::simulate_and_write_scans(
+                caster, config.lidar, poses, noise_seed, config.origin_offset_world_m,
+                config.show_progress, out_dir, mesh, summary);
+        }
     }
+    result.num_movers = movers.movers.size();
     write_ply_mesh(out_dir / "gt_mesh.ply", mesh);
 
     // Parameters, for people (README.txt) and programs (simulation.json).
@@ -135,7 +150,9 @@ RouteSimulationSummary simulate_route_sequence(const RouteSimulationConfig& conf
          << "  \"scene\": {\"curb_height_m\": " << json_number(route.street.curb_height_m)
          << ", \"max_edge_length_m\": " << json_number(route.street.max_edge_length_m)
          << ", \"objects\": {";
-    sequence_internal::write_simulation_json_tail(json, city.scene, summary);
+    sequence_internal::write_simulation_json_tail(
+        json, city.scene, summary,
+        movers.movers.empty() ? "" : "  \"movers\": " + mover_tracks_to_json(movers) + ",\n");
     write_stream_atomically(out_dir / "simulation.json",
                             [&](std::ostream& out) { out << json.str(); });
     write_stream_atomically(out_dir / "README.txt", [&](std::ostream& out) {
@@ -156,6 +173,13 @@ RouteSimulationSummary simulate_route_sequence(const RouteSimulationConfig& conf
             << l.range_noise_sigma_m << " m,\nmounted " << t.sensor_height_m
             << " m above the road; " << num_frames << " scans, " << t.frame_spacing_m
             << " m apart along the drive.\n\n"
+            << (movers.movers.empty()
+                    ? std::string()
+                    : "Movers: " + std::to_string(movers.movers.size()) +
+                          " cars, cyclists and pedestrians on the straights of the drive, each "
+                          "present\nonly while the sensor drives its stretch "
+                          "(simulation.json, \"movers\"); gt_mesh.ply holds the\nstatic city "
+                          "only.\n\n")
             << "velodyne/NNNNNN.bin  float32 x y z intensity (0) per point, sensor frame\n"
             << "poses.txt            T_world_sensor per frame, 12 numbers (3x4 row-major)\n"
             << "gt_mesh.ply          reference mesh in the world frame; face property "

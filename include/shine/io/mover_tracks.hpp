@@ -10,7 +10,9 @@
 // sweep_s) by azimuth. A body's box spans [-l/2, l/2] x [-w/2, w/2] x [0, h] (size_m = l, w, h) in
 // its own frame: x forward, z up, the origin at the middle of its footprint. Its pose at time t is
 // translation(position_m) * rotation_z(yaw_rad), both interpolated linearly between the waypoints
-// around t (times strictly increasing), and held at the first / last waypoint outside them.
+// around t (times strictly increasing), and held at the first / last waypoint outside them. The
+// body is in the scene only from its first waypoint's time to its last's: the simulator casts no
+// ray against it outside them (the city's movers appear and leave with the sensor's pass).
 // Positions are in the frame of the reference mesh's vertices (gt_mesh.ply).
 #pragma once
 
@@ -44,6 +46,8 @@ struct MoverTrack {
 
     /// Pose of the body at `time_s` (see the file comment).
     Eigen::Isometry3d T_world_body(double time_s) const;
+    /// Whether the body is in the scene at `time_s`: from its first waypoint's time to its last's.
+    bool present(double time_s) const;
     /// The body's box in its own frame.
     Eigen::AlignedBox3d box_body() const;
 };

@@ -14,6 +14,7 @@
 #include "shine/sim/city_route.hpp"
 #include "shine/sim/drive_trajectory.hpp"
 #include "shine/sim/lidar_simulator.hpp"
+#include "shine/sim/street_movers.hpp"
 
 namespace shine::sim {
 
@@ -23,6 +24,8 @@ struct RouteSimulationConfig {
     CityRouteConfig city;    ///< route_length_m; city.street sets curb height and max edge
     DriveTrajectoryConfig trajectory = default_route_trajectory();
     LidarConfig lidar;
+    /// num_movers > 0: that many movers per 100 m of straight drive (route_movers.hpp)
+    StreetMoversConfig movers;
     /// Added to every pose and written as the reference mesh's origin_world_m (see
     /// SimulationConfig::origin_offset_world_m).
     Eigen::Vector3d origin_offset_world_m = Eigen::Vector3d::Zero();
@@ -42,13 +45,14 @@ struct RouteSimulationSummary {
     std::size_t num_junctions = 0;
     double scene_seconds = 0.0;  ///< building the city
     double index_seconds = 0.0;  ///< building its BVHs
+    std::size_t num_movers = 0;
 };
 
 /// Builds the city, drives through it and writes out_dir/velodyne/NNNNNN.bin, poses.txt,
-/// gt_mesh.ply (the whole city, observed faces marked), simulation.json and README.txt as
-/// simulate_sequence does, removing stale scans beyond the route's. Throws ConfigError for invalid
-/// configs (a route too short for the smallest city names its length) and IoError when a file
-/// cannot be written.
+/// gt_mesh.ply (the whole city, observed faces marked; movers are not in it), simulation.json
+/// (with the movers' paths) and README.txt as simulate_sequence does, removing stale scans beyond
+/// the route's. Throws ConfigError for invalid configs (a route too short for the smallest city
+/// names its length) and IoError when a file cannot be written.
 RouteSimulationSummary simulate_route_sequence(const RouteSimulationConfig& config,
                                                const std::filesystem::path& out_dir);
 
