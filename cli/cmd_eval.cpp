@@ -13,6 +13,7 @@
 #include "shine/eval/heldout_ranges.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/metrics_report.hpp"
+#include "shine/eval/tiled_evaluation.hpp"
 #include "shine/io/mover_tracks.hpp"
 #include "shine/io/ply.hpp"
 
@@ -25,6 +26,7 @@ struct EvalOptions {
     EvalConfig config;
     bool json = false;
     std::string movers_path;  ///< simulation.json with movers: also the ghost area
+    double tile_m = 0.0;      ///< > 0: score tile by tile (a city)
     // Held-out evaluation.
     std::string heldout_dir;
     std::string frames;
@@ -58,6 +60,38 @@ int run_heldout(const EvalOptions& options) {
     return 0;
 }
 
+int run_tiled(const EvalOptions& options, const TriangleMesh& pred, const TriangleMesh& ref,
+              const EvalConfig& eval, const MoverTracks& movers) {
+    TiledEvalConfig config;
+    config.eval = eval;
+    config.tile_m = options.tile_m;
+    config.show_progress = !options.json;
+    const bool with_movers = !options.movers_path.empty();
+    const TiledEvaluation result =
+        evaluate_meshes_tiled(pred, ref, config, with_movers ? &movers : nullptr);
+    if (options.json) {
+        nlohmann::ordered_json json =
+            nlohmann::ordered_json::parse(metrics_to_json(result.metrics));
+        if (with_movers)
+            json["ghost"] = nlohmann::ordered_json::parse(ghost_metrics_to_json(result.ghost));
+        json["tiles"] = {{"tile_m", options.tile_m},
+                         {"scored", result.tiles_scored},
+                         {"unscored_pred_area_m2", result.unscored_pred_area_m2}};
+        std::printf("%s\n", json.dump().c_str());
+        return 0;
+    }
+    std::printf("pred   %s\nref    %s\n%s%s%s", options.pred_path.c_str(), options.ref_path.c_str(),
+                with_movers ? ("movers " + options.movers_path + "\n").c_str() : "",
+                format_metrics(result.metrics).c_str(),
+                with_movers ? format_ghost_metrics(result.ghost).c_str() : "");
+    std::printf(
+        "tiles             %zu of %.0f m scored (each sampled at its own density, the "
+        "lowest above); %.1f m^2 predicted where no reference surface was observed, "
+        "not scored\n",
+        result.tiles_scored, options.tile_m, result.unscored_pred_area_m2);
+    return 0;
+}
+
 int run_eval(const EvalOptions& options) {
     if (options.ref_path.empty() == options.heldout_dir.empty()) {
         throw ConfigError(
@@ -70,6 +104,9 @@ int run_eval(const EvalOptions& options) {
                 "--movers measures ghosts against a reference mesh: use it with "
                 "--ref, not --heldout");
         }
+        if (options.tile_m > 0.0) {
+            throw ConfigError("--tile-m scores a mesh against a reference mesh: use it with --ref");
+        }
         return run_heldout(options);
     }
     // read_ply_mesh throws IoError naming the file for missing or corrupt input.
@@ -81,6 +118,7 @@ int run_eval(const EvalOptions& options) {
     // The movers are read first: a bad simulation.json fails before the slow part.
     const MoverTracks movers =
         options.movers_path.empty() ? MoverTracks{} : read_mover_tracks(options.movers_path);
+    if (options.tile_m > 0.0) return run_tiled(options, pred, ref, config, movers);
     const MeshMetrics metrics = evaluate_meshes(pred, ref, config);
     if (options.movers_path.empty()) {
         if (options.json) {
@@ -125,6 +163,11 @@ const RegisterCommand kEvalCommand(50, [](CLI::App& app, Action& action) {
         ->capture_default_str();
     cmd->add_option("--seed", options->config.seed, "seed of the surface sampling")
         ->capture_default_str();
+    cmd->add_option("--tile-m", options->tile_m,
+                    "with --ref: score tile by tile (square columns of this edge, m), each at the "
+                    "protocol's density, and combine by area: for scenes too large for one "
+                    "sampling (a city; docs/city_scale.md)")
+        ->check(CLI::PositiveNumber);
     cmd->add_option("--heldout", options->heldout_dir,
                     "sequence whose scans score the mesh (any layout `shine map` reads)");
     cmd->add_option("--frames", options->frames,

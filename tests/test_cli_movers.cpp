@@ -57,6 +57,21 @@ TEST(CliMovers, SimulateWritesMoversAndAStaticReference) {
                                     dir);
     EXPECT_NE(bad.exit_code, 0);
     EXPECT_NE(bad.output.find("--movers N"), std::string::npos) << bad.output;
+
+    // Tiles are for a reference mesh, and have a positive size.
+    const CliResult zero_tile =
+        run_shine("eval --pred '" + (still / "gt_mesh.ply").string() + "' --ref '" +
+                      (still / "gt_mesh.ply").string() + "' --tile-m 0",
+                  dir);
+    EXPECT_NE(zero_tile.exit_code, 0);
+    EXPECT_NE(zero_tile.output.find("--tile-m"), std::string::npos) << zero_tile.output;
+    const CliResult heldout_tiles =
+        run_shine("eval --pred '" + (still / "gt_mesh.ply").string() + "' --heldout '" +
+                      still.string() + "' --frames 1 --tile-m 50",
+                  dir);
+    EXPECT_NE(heldout_tiles.exit_code, 0);
+    EXPECT_NE(heldout_tiles.output.find("use it with --ref"), std::string::npos)
+        << heldout_tiles.output;
 }
 
 }  // namespace
