@@ -107,5 +107,7 @@ def read_sequence(
 ) -> ScanSequenceReader:
     """(points (N, 3) float32 sensor frame, pose 4x4 T_world_sensor, times None) per scan."""
 
-def evaluate(pred_mesh: MeshInput, ref_mesh: MeshInput, threshold_m: float = 0.1) -> Dict[str, float]:
-    """accuracy_m, completion_m, chamfer_l1_m, precision, completion_ratio, fscore, ..."""
+def evaluate(pred_mesh: MeshInput, ref_mesh: MeshInput, threshold_m: float = 0.1,
+             tile_m: Optional[float] = None) -> Dict[str, float]:
+    """accuracy_m, completion_m, chamfer_l1_m, precision, completion_ratio, fscore, ...
+    (tile by tile with tile_m, as `shine eval --tile-m`)"""

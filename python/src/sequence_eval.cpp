@@ -8,6 +8,7 @@
 #include "long_call.hpp"
 #include "numpy_io.hpp"
 #include "shine/eval/mesh_metrics.hpp"
+#include "shine/eval/tiled_evaluation.hpp"
 #include "shine/io/scan_sequence.hpp"
 
 namespace shinevdb {
@@ -88,7 +89,8 @@ Returns:
 
     m.def(
         "evaluate",
-        [](const py::handle& pred_mesh, const py::handle& ref_mesh, double threshold_m) {
+        [](const py::handle& pred_mesh, const py::handle& ref_mesh, double threshold_m,
+           const py::object& tile_m) {
             const TriangleMesh pred = mesh_from_python(pred_mesh, "pred_mesh");
             const TriangleMesh ref = mesh_from_python(ref_mesh, "ref_mesh");
             if (!(threshold_m > 0.0) || !std::isfinite(threshold_m)) {
@@ -97,13 +99,32 @@ Returns:
             }
             EvalConfig config;
             config.threshold_m = threshold_m;
+            TiledEvalConfig tiled;
+            tiled.eval = config;
+            if (!tile_m.is_none()) {
+                tiled.tile_m = tile_m.cast<double>();
+                if (!(tiled.tile_m > 0.0) || !std::isfinite(tiled.tile_m)) {
+                    throw py::value_error("tile_m must be a positive number of metres, got " +
+                                          std::to_string(tiled.tile_m));
+                }
+            }
             MeshMetrics r;
+            TiledEvaluation t;
             {
                 py::gil_scoped_release release;
-                r = evaluate_meshes(pred, ref, config);
+                if (tile_m.is_none()) {
+                    r = evaluate_meshes(pred, ref, config);
+                } else {
+                    t = evaluate_meshes_tiled(pred, ref, tiled);
+                    r = t.metrics;
+                }
             }
             check_signals();
             py::dict out;
+            if (!tile_m.is_none()) {
+                out["tiles_scored"] = t.tiles_scored;
+                out["unscored_pred_area_m2"] = t.unscored_pred_area_m2;
+            }
             out["accuracy_m"] = r.accuracy_m;
             out["completion_m"] = r.completion_m;
             out["chamfer_l1_m"] = r.chamfer_l1_m;
@@ -121,7 +142,8 @@ Returns:
             out["ref_observed_points"] = r.ref_observed_points;
             return out;
         },
-        py::arg("pred_mesh"), py::arg("ref_mesh"), py::arg("threshold_m") = 0.1, R"doc(
+        py::arg("pred_mesh"), py::arg("ref_mesh"), py::arg("threshold_m") = 0.1,
+        py::arg("tile_m") = py::none(), R"doc(
 Scores a mesh against a reference as `shine eval` does (SHINE-Mapping's protocol).
 
 Args:
@@ -129,9 +151,13 @@ Args:
         face_observed) arrays; completion counts only observed reference faces (all when the
         reference has no flags; the simulator's gt_mesh.ply marks them).
     threshold_m: precision / recall threshold.
+    tile_m: score tile by tile (square columns of this edge, each at the protocol's density,
+        combined by area), as `shine eval --tile-m` does: for a city-sized scene, which one
+        sampling covers too sparsely for the threshold.
 Returns:
     A dict: accuracy_m, completion_m, chamfer_l1_m, precision, completion_ratio, fscore (ratios in
-    [0, 1]), and the sampling figures.
+    [0, 1]), and the sampling figures (with tile_m: the lowest tile's density, tiles_scored and
+    unscored_pred_area_m2).
 )doc");
 }
 

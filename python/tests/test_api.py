@@ -187,6 +187,23 @@ def test_read_sequence_ply_pcd_folders(small_sequence, scans, tmp_path, writer, 
         np.testing.assert_array_equal(pose, ref_pose)
 
 
+def test_evaluate_tile_by_tile(small_sequence, batch_map):
+    gt = small_sequence / "gt_mesh.ply"
+    mesh = batch_map.extract_triangle_mesh()
+    whole = shinevdb.evaluate(mesh, gt, threshold_m=0.2)
+    tiled = shinevdb.evaluate(mesh, gt, threshold_m=0.2, tile_m=60.0)
+    assert tiled["tiles_scored"] > 1
+    assert tiled["unscored_pred_area_m2"] == 0.0
+    # The tiles sample more densely than one sampling of the whole street; the figures agree
+    # within the sampling's own spread (measured: F 0.764 whole at 176 points per m^2, 0.775 in
+    # tiles at 409 or more).
+    assert tiled["sample_density_per_m2"] > whole["sample_density_per_m2"]
+    assert abs(tiled["fscore"] - whole["fscore"]) < 0.03
+    assert "tiles_scored" not in whole
+    with pytest.raises(ValueError, match="tile_m"):
+        shinevdb.evaluate(mesh, gt, tile_m=0.0)
+
+
 def test_evaluate_accepts_unsigned_triangles(batch_map):
     vertices, triangles = batch_map.extract_triangle_mesh()
     as_unsigned = shinevdb.evaluate((vertices, triangles.astype(np.uint32)), (vertices, triangles))
