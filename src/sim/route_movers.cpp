@@ -12,9 +12,6 @@ namespace route_movers_internal {
 
 using random_internal::Rng;
 
-const Eigen::Vector3d kCarSize_m(4.5, 1.8, 1.5);
-const Eigen::Vector3d kCyclistSize_m(1.8, 0.6, 1.7);
-const Eigen::Vector3d kPedestrianSize_m(0.5, 0.5, 1.8);
 constexpr double kStretchLength_m = 100.0;    ///< straights are cut into stretches of about this
 constexpr double kMinStretchLength_m = 30.0;  ///< shorter straights get no movers
 constexpr double kParkedFromCurb_m = 1.35;    ///< the parking lane's centre
@@ -39,8 +36,6 @@ struct Stretch {
         const Eigen::Vector2d p = start_m + x_m * along + y_m * left();
         return {p.x(), p.y(), z_m};
     }
-    /// Where along the stretch the sensor is at `time_s`.
-    double sensor_x_m(double time_s) const { return (time_s - begin_s) * speed_mps; }
 };
 
 /// The street line a straight piece runs on: the rows for a piece along x, the rungs along y; the
@@ -66,11 +61,11 @@ void end_at(MoverTrack& track, double end_s) {
 }
 
 /// A body at constant velocity along the stretch over its whole time.
-MoverTrack along_stretch(const Stretch& st, MoverKind kind, const Eigen::Vector3d& size_m,
-                         double x_at_begin_m, double y_m, double z_m, double speed_mps) {
+MoverTrack along_stretch(const Stretch& st, MoverKind kind, double x_at_begin_m, double y_m,
+                         double z_m, double speed_mps) {
     MoverTrack track;
     track.kind = kind;
-    track.size_m = size_m;
+    track.size_m = mover_size_m(kind);
     const double yaw_rad = st.yaw_rad() + (speed_mps < 0.0 ? M_PI : 0.0);
     const double duration_s = st.end_s - st.begin_s;
     track.waypoints.push_back({st.begin_s, st.at(x_at_begin_m, y_m, z_m), yaw_rad});
@@ -108,8 +103,9 @@ MoverTrack within_stretch(const Stretch& st, MoverTrack track, double from_m, do
 bool blocked(const Stretch& st, double x_m, double y_m, double margin_m,
              const std::vector<Eigen::AlignedBox2d>& obstacles_m) {
     const Eigen::Vector3d c = st.at(x_m, y_m, 0.0);
-    const Eigen::Vector2d half_along = (0.5 * kCarSize_m.x() + margin_m) * st.along.cwiseAbs();
-    const Eigen::Vector2d half_across = (0.5 * kCarSize_m.y() + margin_m) * st.left().cwiseAbs();
+    const Eigen::Vector3d car_m = mover_size_m(MoverKind::kCar);
+    const Eigen::Vector2d half_along = (0.5 * car_m.x() + margin_m) * st.along.cwiseAbs();
+    const Eigen::Vector2d half_across = (0.5 * car_m.y() + margin_m) * st.left().cwiseAbs();
     const Eigen::Vector2d half = half_along + half_across;
     const Eigen::AlignedBox2d box(c.head<2>() - half, c.head<2>() + half);
     for (const Eigen::AlignedBox2d& o : obstacles_m) {
@@ -118,116 +114,127 @@ bool blocked(const Stretch& st, double x_m, double y_m, double margin_m,
     return false;
 }
 
-/// Mover number `kind_index` (0: the parked car that leaves, then the car ahead, the oncoming
-/// car, the cyclist, the pedestrian) of a stretch; an empty track where none fits.
-MoverTrack make_mover(const Stretch& st, const LoopPath& path, double stretch_path_m,
-                      int kind_index, double curb_height_m,
-                      const std::vector<Eigen::AlignedBox2d>& obstacles_m, Rng& rng) {
-    const double right_curb_m = st.centre_left_m - st.half_road_m;
-    const double left_curb_m = st.centre_left_m + st.half_road_m;
+/// A car parked in a gap of the right parking lane that pulls out into the sensor's lane once the
+/// sensor has passed it; an empty track where the stretch has no gap.
+MoverTrack parked_car_that_leaves(const Stretch& st,
+                                  const std::vector<Eigen::AlignedBox2d>& obstacles_m, Rng& rng) {
+    constexpr double kAccel_mps2 = 2.0;
+    const double parked_y_m = st.centre_left_m - st.half_road_m + kParkedFromCurb_m;
+    // Where the car is k seconds after it starts to pull out (into the sensor's lane over three
+    // seconds).
+    auto pull_out = [&](double x_m, double k) {
+        return Eigen::Vector2d(x_m + 0.5 * kAccel_mps2 * k * k,
+                               parked_y_m * std::max(0.0, 1.0 - k / 3.0));
+    };
+    double parked_x_m = -1.0;
+    for (int attempt = 0; attempt < 40 && parked_x_m < 0.0; ++attempt) {
+        const double x_m = st.length_m * rng.uniform(0.3, 0.7);
+        // Room to stand, and for its first second out (later it may graze the next parked car's
+        // corner).
+        bool clear = !blocked(st, x_m, parked_y_m, 0.3, obstacles_m);
+        for (const double k : {0.5, 1.0}) {
+            const Eigen::Vector2d p = pull_out(x_m, k);
+            clear = clear && !blocked(st, p.x(), p.y(), 0.1, obstacles_m);
+        }
+        if (clear) parked_x_m = x_m;
+    }
+    if (parked_x_m < 0.0) return {};
+    MoverTrack car;
+    car.kind = MoverKind::kCar;
+    car.size_m = mover_size_m(MoverKind::kCar);
+    const Eigen::Vector3d parked = st.at(parked_x_m, parked_y_m, 0.0);
+    const double leave_s = st.begin_s + parked_x_m / st.speed_mps + rng.uniform(0.0, 1.0);
+    car.waypoints.push_back({st.begin_s, parked, st.yaw_rad()});
+    if (leave_s < st.end_s) {
+        car.waypoints.push_back({leave_s, parked, st.yaw_rad()});
+        double x_m = parked_x_m;
+        for (int k = 1; k <= 4; ++k) {  // 8 m/s after four seconds
+            const Eigen::Vector2d p = pull_out(parked_x_m, k);
+            x_m = p.x();
+            car.waypoints.push_back({leave_s + k, st.at(p.x(), p.y(), 0.0), st.yaw_rad()});
+        }
+        const double after_s = std::max(st.end_s, leave_s + 4.0) + 1.0;
+        car.waypoints.push_back(
+            {after_s, st.at(x_m + 4.0 * kAccel_mps2 * (after_s - leave_s - 4.0), 0.0, 0.0),
+             st.yaw_rad()});
+    } else {
+        car.waypoints.push_back({st.end_s + 1.0, parked, st.yaw_rad()});
+    }
+    end_at(car, st.end_s);
+    return car;
+}
+
+/// A car ahead in the sensor's lane, on the drive's own path (so it turns where the drive turns),
+/// `path_m` being the stretch's start along it: a waypoint every metre of its way.
+MoverTrack car_ahead(const Stretch& st, const LoopPath& path, double path_m, Rng& rng) {
+    MoverTrack car;
+    car.kind = MoverKind::kCar;
+    car.size_m = mover_size_m(MoverKind::kCar);
+    const double gap_m = rng.uniform(15.0, 30.0);
+    const double speed_mps = st.speed_mps + rng.uniform(-1.0, 2.0);
+    const double duration_s = st.end_s - st.begin_s;
+    const int steps = std::max(1, static_cast<int>(std::ceil(speed_mps * duration_s)));
+    for (int k = 0; k <= steps; ++k) {
+        const double t_s = st.begin_s + duration_s * k / steps;
+        Eigen::Vector2d position_m, heading;
+        path.sample(path_m + gap_m + speed_mps * (t_s - st.begin_s), position_m, heading);
+        car.waypoints.push_back({t_s, Eigen::Vector3d(position_m.x(), position_m.y(), 0.0),
+                                 std::atan2(heading.y(), heading.x())});
+    }
+    // Unwrapped headings, so that interpolation turns the short way.
+    for (std::size_t k = 1; k < car.waypoints.size(); ++k) {
+        double& yaw = car.waypoints[k].yaw_rad;
+        const double previous = car.waypoints[k - 1].yaw_rad;
+        while (yaw - previous > M_PI) yaw -= 2.0 * M_PI;
+        while (yaw - previous < -M_PI) yaw += 2.0 * M_PI;
+    }
+    return car;
+}
+
+/// A car in the opposite lane that meets the sensor along the stretch; it appears at the
+/// stretch's far end (out of the junction) and leaves at its near end.
+MoverTrack oncoming_car(const Stretch& st, Rng& rng) {
+    const double offset_m = std::max(2.0 * st.centre_left_m, kOncomingMinOffset_m);
+    const double speed_mps = rng.uniform(8.0, 14.0);
+    const double meet_x_m = st.length_m * rng.uniform(0.3, 0.9);
+    const double meet_s = st.begin_s + meet_x_m / st.speed_mps;
+    return within_stretch(
+        st,
+        along_stretch(st, MoverKind::kCar, meet_x_m + speed_mps * (meet_s - st.begin_s), offset_m,
+                      0.0, -speed_mps),
+        0.0, st.length_m);
+}
+
+/// A cyclist or a pedestrian on either sidewalk, going either way, while it is along the stretch.
+MoverTrack sidewalk_mover(const Stretch& st, MoverKind kind, double curb_height_m, Rng& rng) {
+    const bool cyclist = kind == MoverKind::kCyclist;
+    const double beyond_m = cyclist ? 1.3 : 2.2;
+    const double y_m = rng.chance(0.5) ? st.centre_left_m - st.half_road_m - beyond_m
+                                       : st.centre_left_m + st.half_road_m + beyond_m;
+    const double direction = rng.chance(0.5) ? 1.0 : -1.0;
+    const double speed_mps = cyclist ? rng.uniform(3.0, 6.0) : rng.uniform(0.8, 1.6);
+    return within_stretch(st,
+                          along_stretch(st, kind, rng.uniform(0.0, st.length_m), y_m, curb_height_m,
+                                        direction * speed_mps),
+                          0.0, st.length_m);
+}
+
+/// Mover number `kind_index` of a stretch, in the street's order: the parked car that leaves,
+/// the car ahead, the oncoming car, the cyclist, the pedestrian.
+MoverTrack make_mover(const Stretch& st, const LoopPath& path, double path_m, int kind_index,
+                      double curb_height_m, const std::vector<Eigen::AlignedBox2d>& obstacles_m,
+                      Rng& rng) {
     switch (kind_index) {
-        case 0: {
-            MoverTrack car;
-            car.kind = MoverKind::kCar;
-            car.size_m = kCarSize_m;
-            // A gap between the street's parked cars, if the stretch has one.
-            const double parked_y_m = right_curb_m + kParkedFromCurb_m;
-            double parked_x_m = -1.0;
-            constexpr double kAccel_mps2 = 2.0;
-            // Where the car is k seconds after it starts to pull out (into the sensor's lane
-            // over three seconds).
-            auto pull_out = [&](double x_m, double k) {
-                return Eigen::Vector2d(x_m + 0.5 * kAccel_mps2 * k * k,
-                                       parked_y_m * std::max(0.0, 1.0 - k / 3.0));
-            };
-            for (int attempt = 0; attempt < 40 && parked_x_m < 0.0; ++attempt) {
-                const double x_m = st.length_m * rng.uniform(0.3, 0.7);
-                // Room to stand, and for its first second out (later it may graze the next
-                // parked car's corner).
-                bool clear = !blocked(st, x_m, parked_y_m, 0.3, obstacles_m);
-                for (const double k : {0.5, 1.0}) {
-                    const Eigen::Vector2d p = pull_out(x_m, k);
-                    clear = clear && !blocked(st, p.x(), p.y(), 0.1, obstacles_m);
-                }
-                if (clear) parked_x_m = x_m;
-            }
-            if (parked_x_m < 0.0) return {};
-            const double leave_s = st.begin_s + parked_x_m / st.speed_mps + rng.uniform(0.0, 1.0);
-            car.waypoints.push_back({st.begin_s, st.at(parked_x_m, parked_y_m, 0.0), st.yaw_rad()});
-            if (leave_s < st.end_s) {
-                car.waypoints.push_back(
-                    {leave_s, st.at(parked_x_m, parked_y_m, 0.0), st.yaw_rad()});
-                double x_m = parked_x_m;
-                for (int k = 1; k <= 4; ++k) {  // 8 m/s after four seconds
-                    const Eigen::Vector2d p = pull_out(parked_x_m, k);
-                    x_m = p.x();
-                    car.waypoints.push_back({leave_s + k, st.at(p.x(), p.y(), 0.0), st.yaw_rad()});
-                }
-                const double after_s = std::max(st.end_s, leave_s + 4.0) + 1.0;
-                car.waypoints.push_back(
-                    {after_s, st.at(x_m + 4.0 * kAccel_mps2 * (after_s - leave_s - 4.0), 0.0, 0.0),
-                     st.yaw_rad()});
-            } else {
-                car.waypoints.push_back(
-                    {st.end_s + 1.0, st.at(parked_x_m, parked_y_m, 0.0), st.yaw_rad()});
-            }
-            end_at(car, st.end_s);
-            return car;
-        }
-        case 1: {
-            // Ahead in the sensor's lane, on the drive's own path (so it turns where the drive
-            // turns): a waypoint every metre of its path.
-            MoverTrack car;
-            car.kind = MoverKind::kCar;
-            car.size_m = kCarSize_m;
-            const double gap_m = rng.uniform(15.0, 30.0);
-            const double speed_mps = st.speed_mps + rng.uniform(-1.0, 2.0);
-            const double duration_s = st.end_s - st.begin_s;
-            const int steps = std::max(1, static_cast<int>(std::ceil(speed_mps * duration_s)));
-            for (int k = 0; k <= steps; ++k) {
-                const double t_s = st.begin_s + duration_s * k / steps;
-                Eigen::Vector2d position_m, heading;
-                path.sample(stretch_path_m + gap_m + speed_mps * (t_s - st.begin_s), position_m,
-                            heading);
-                car.waypoints.push_back({t_s, Eigen::Vector3d(position_m.x(), position_m.y(), 0.0),
-                                         std::atan2(heading.y(), heading.x())});
-            }
-            // Unwrapped headings, so that interpolation turns the short way.
-            for (std::size_t k = 1; k < car.waypoints.size(); ++k) {
-                double& yaw = car.waypoints[k].yaw_rad;
-                const double previous = car.waypoints[k - 1].yaw_rad;
-                while (yaw - previous > M_PI) yaw -= 2.0 * M_PI;
-                while (yaw - previous < -M_PI) yaw += 2.0 * M_PI;
-            }
-            return car;
-        }
-        case 2: {
-            // Appears where the stretch begins at its far end (out of the junction) and leaves
-            // at its near end.
-            const double offset_m = std::max(2.0 * st.centre_left_m, kOncomingMinOffset_m);
-            const double speed_mps = rng.uniform(8.0, 14.0);
-            const double meet_x_m = st.length_m * rng.uniform(0.3, 0.9);
-            const double meet_s = st.begin_s + meet_x_m / st.speed_mps;
-            return within_stretch(st,
-                                  along_stretch(st, MoverKind::kCar, kCarSize_m,
-                                                meet_x_m + speed_mps * (meet_s - st.begin_s),
-                                                offset_m, 0.0, -speed_mps),
-                                  0.0, st.length_m);
-        }
-        default: {
-            const bool cyclist = kind_index == 3;
-            const double beyond_m = cyclist ? 1.3 : 2.2;
-            const double y_m = rng.chance(0.5) ? right_curb_m - beyond_m : left_curb_m + beyond_m;
-            const double direction = rng.chance(0.5) ? 1.0 : -1.0;
-            const double speed_mps = cyclist ? rng.uniform(3.0, 6.0) : rng.uniform(0.8, 1.6);
-            return within_stretch(
-                st,
-                along_stretch(st, cyclist ? MoverKind::kCyclist : MoverKind::kPedestrian,
-                              cyclist ? kCyclistSize_m : kPedestrianSize_m,
-                              rng.uniform(0.0, st.length_m), y_m, curb_height_m,
-                              direction * speed_mps),
-                0.0, st.length_m);
-        }
+        case 0:
+            return parked_car_that_leaves(st, obstacles_m, rng);
+        case 1:
+            return car_ahead(st, path, path_m, rng);
+        case 2:
+            return oncoming_car(st, rng);
+        case 3:
+            return sidewalk_mover(st, MoverKind::kCyclist, curb_height_m, rng);
+        default:
+            return sidewalk_mover(st, MoverKind::kPedestrian, curb_height_m, rng);
     }
 }
 

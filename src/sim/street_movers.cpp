@@ -11,9 +11,6 @@ namespace street_movers_internal {
 
 using random_internal::Rng;
 
-const Eigen::Vector3d kCarSize_m(4.5, 1.8, 1.5);
-const Eigen::Vector3d kCyclistSize_m(1.8, 0.6, 1.7);
-const Eigen::Vector3d kPedestrianSize_m(0.5, 0.5, 1.8);
 constexpr double kLaneY_m = 2.3;  ///< lane centres, either side of the road's centre
 
 /// A mover at constant velocity from `start` over [0, end_time_s].
@@ -33,6 +30,17 @@ MoverTrack constant_velocity(MoverKind kind, const Eigen::Vector3d& size_m,
 }  // namespace street_movers_internal
 
 using namespace street_movers_internal;
+
+Eigen::Vector3d mover_size_m(MoverKind kind) {
+    switch (kind) {
+        case MoverKind::kCyclist:
+            return {1.8, 0.6, 1.7};
+        case MoverKind::kPedestrian:
+            return {0.5, 0.5, 1.8};
+        default:
+            return {4.5, 1.8, 1.5};
+    }
+}
 
 void validate(const StreetMoversConfig& c) {
     if (c.num_movers < 0 || c.num_movers > 1000) {
@@ -75,7 +83,7 @@ MoverTracks make_street_movers(const StreetMoversConfig& config, const StreetSce
             // accelerates at 2 m/s^2 (a waypoint per second) and keeps 8 m/s.
             MoverTrack car;
             car.kind = MoverKind::kCar;
-            car.size_m = kCarSize_m;
+            car.size_m = mover_size_m(MoverKind::kCar);
             const Eigen::Vector3d parked(drive_length_m * rng.uniform(0.35, 0.65),
                                          -(half_road_m - 1.35), 0.0);
             const double leave_s = end_s * rng.uniform(0.3, 0.5);
@@ -100,16 +108,16 @@ MoverTracks make_street_movers(const StreetMoversConfig& config, const StreetSce
             case 0: {  // overtaking: starts behind the sensor, faster than it
                 const Eigen::Vector3d start(
                     -8.0 - kCarGap_m * num_overtaking++ - rng.uniform(0.0, 6.0), -kLaneY_m, 0.0);
-                tracks.movers.push_back(
-                    constant_velocity(MoverKind::kCar, kCarSize_m, start, overtaking_mps, end_s));
+                tracks.movers.push_back(constant_velocity(
+                    MoverKind::kCar, mover_size_m(MoverKind::kCar), start, overtaking_mps, end_s));
                 break;
             }
             case 1: {  // oncoming: starts ahead, meets the sensor during the drive
                 const Eigen::Vector3d start(
                     oncoming_start_m + kCarGap_m * num_oncoming++ + rng.uniform(0.0, 6.0), kLaneY_m,
                     0.0);
-                tracks.movers.push_back(
-                    constant_velocity(MoverKind::kCar, kCarSize_m, start, -oncoming_mps, end_s));
+                tracks.movers.push_back(constant_velocity(
+                    MoverKind::kCar, mover_size_m(MoverKind::kCar), start, -oncoming_mps, end_s));
                 break;
             }
             case 2:
@@ -120,9 +128,11 @@ MoverTracks make_street_movers(const StreetMoversConfig& config, const StreetSce
                 const double speed = cyclist ? rng.uniform(3.0, 6.0) : rng.uniform(0.8, 1.6);
                 const Eigen::Vector3d start(rng.uniform(0.0, drive_length_m),
                                             side * (half_road_m + (cyclist ? 1.3 : 2.2)), curb_m);
-                tracks.movers.push_back(constant_velocity(
-                    cyclist ? MoverKind::kCyclist : MoverKind::kPedestrian,
-                    cyclist ? kCyclistSize_m : kPedestrianSize_m, start, direction * speed, end_s));
+                tracks.movers.push_back(
+                    constant_velocity(cyclist ? MoverKind::kCyclist : MoverKind::kPedestrian,
+                                      cyclist ? mover_size_m(MoverKind::kCyclist)
+                                              : mover_size_m(MoverKind::kPedestrian),
+                                      start, direction * speed, end_s));
                 break;
             }
         }

@@ -27,6 +27,10 @@ struct StreetMoversConfig {
     double sweep_s = 0.1;         ///< one scan's rays spread over this time by azimuth
 };
 
+/// The box (length, width, height) of a kind of mover, m: a car 4.5 x 1.8 x 1.5, a cyclist
+/// 1.8 x 0.6 x 1.7, a pedestrian 0.5 x 0.5 x 1.8.
+Eigen::Vector3d mover_size_m(MoverKind kind);
+
 /// Throws ConfigError naming the field for a negative count (or more than 1000), or a
 /// non-positive period or a sweep outside [0, frame_period_s].
 void validate(const StreetMoversConfig& config);
