@@ -2,6 +2,7 @@
 // box counts that quad's area; a quad off the static scene but away from every mover does not.
 #include <gtest/gtest.h>
 
+#include "mesh_test_support.hpp"
 #include "shine/eval/ghost_area.hpp"
 
 namespace shine {
@@ -9,14 +10,7 @@ namespace {
 
 constexpr double kAreaRelTol = 0.03;  // 3 %: sampling at 1 point per cm^2
 
-/// Appends the quad a, b, c, d (two triangles).
-void add_quad(TriangleMesh& mesh, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
-              const Eigen::Vector3f& c, const Eigen::Vector3f& d) {
-    const int i = static_cast<int>(mesh.vertices.size());
-    mesh.vertices.insert(mesh.vertices.end(), {a, b, c, d});
-    mesh.triangles.push_back({i, i + 1, i + 2});
-    mesh.triangles.push_back({i, i + 2, i + 3});
-}
+using mesh_test::add_quad;
 
 /// The static reference: a 10 m x 10 m floor at z = 0, all observed.
 TriangleMesh floor_mesh() {

@@ -3,6 +3,7 @@
 // up, and bad settings are refused.
 #include <gtest/gtest.h>
 
+#include "mesh_test_support.hpp"
 #include "shine/core/error.hpp"
 #include "shine/eval/mesh_metrics.hpp"
 #include "shine/eval/tiled_evaluation.hpp"
@@ -10,14 +11,7 @@
 namespace shine {
 namespace {
 
-/// Appends the quad a, b, c, d (two triangles).
-void add_quad(TriangleMesh& mesh, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
-              const Eigen::Vector3f& c, const Eigen::Vector3f& d) {
-    const int i = static_cast<int>(mesh.vertices.size());
-    mesh.vertices.insert(mesh.vertices.end(), {a, b, c, d});
-    mesh.triangles.push_back({i, i + 1, i + 2});
-    mesh.triangles.push_back({i, i + 2, i + 3});
-}
+using mesh_test::add_quad;
 
 /// A floor x in [x0, x1], y in [-5, 5] at height z, in squares of 0.5 m.
 TriangleMesh floor_mesh(float x0, float x1, float z) {

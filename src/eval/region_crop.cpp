@@ -16,10 +16,6 @@ std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
     return (std::uint64_t(x + kBias) & kMask) | ((std::uint64_t(y + kBias) & kMask) << 21) |
            ((std::uint64_t(z + kBias) & kMask) << 42);
 }
-
-Eigen::Vector3f centroid(const TriangleMesh& mesh, const Eigen::Vector3i& t) {
-    return (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3.0f;
-}
 }  // namespace
 
 VoxelRegion::VoxelRegion(double voxel_size_m) : voxel_size_m_(voxel_size_m) {
@@ -67,17 +63,18 @@ double VoxelRegion::volume_m3() const {
     return static_cast<double>(voxels_.size()) * voxel_size_m_ * voxel_size_m_ * voxel_size_m_;
 }
 
-TriangleMesh crop_mesh(const TriangleMesh& mesh, const VoxelRegion& region) {
+TriangleMesh extract_triangles(const TriangleMesh& mesh, const std::vector<std::uint32_t>& indices,
+                               std::vector<int>& vertex_slot) {
     TriangleMesh out;
-    out.origin_world_m = mesh.origin_world_m;  // the region is in the mesh's frame
-    std::vector<int> new_index(mesh.vertices.size(), -1);
+    out.origin_world_m = mesh.origin_world_m;
     const bool flags = mesh.face_observed.size() == mesh.triangles.size();
-    for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+    out.triangles.reserve(indices.size());
+    if (flags) out.face_observed.reserve(indices.size());
+    for (const std::uint32_t i : indices) {
         const Eigen::Vector3i& t = mesh.triangles[i];
-        if (!region.contains(centroid(mesh, t))) continue;
         Eigen::Vector3i renumbered;
         for (int c = 0; c < 3; ++c) {
-            int& n = new_index[t[c]];
+            int& n = vertex_slot[t[c]];
             if (n < 0) {
                 n = static_cast<int>(out.vertices.size());
                 out.vertices.push_back(mesh.vertices[t[c]]);
@@ -87,7 +84,22 @@ TriangleMesh crop_mesh(const TriangleMesh& mesh, const VoxelRegion& region) {
         out.triangles.push_back(renumbered);
         if (flags) out.face_observed.push_back(mesh.face_observed[i]);
     }
+    for (const std::uint32_t i : indices) {
+        for (int c = 0; c < 3; ++c) vertex_slot[mesh.triangles[i][c]] = -1;
+    }
     return out;
+}
+
+TriangleMesh crop_mesh(const TriangleMesh& mesh, const VoxelRegion& region) {
+    // The region is in the mesh's frame.
+    std::vector<std::uint32_t> inside;
+    for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+        if (region.contains(triangle_centroid(mesh, mesh.triangles[i]))) {
+            inside.push_back(static_cast<std::uint32_t>(i));
+        }
+    }
+    std::vector<int> vertex_slot(mesh.vertices.size(), -1);
+    return extract_triangles(mesh, inside, vertex_slot);
 }
 
 TriangleMesh restrict_observed(const TriangleMesh& reference, const VoxelRegion& region) {
@@ -96,7 +108,7 @@ TriangleMesh restrict_observed(const TriangleMesh& reference, const VoxelRegion&
         out.face_observed.assign(out.triangles.size(), 1);
     }
     for (std::size_t i = 0; i < out.triangles.size(); ++i) {
-        if (out.face_observed[i] && !region.contains(centroid(out, out.triangles[i]))) {
+        if (out.face_observed[i] && !region.contains(triangle_centroid(out, out.triangles[i]))) {
             out.face_observed[i] = 0;
         }
     }

@@ -10,20 +10,11 @@
 
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
+#include "shine/eval/mesh_sampling.hpp"
+#include "shine/eval/region_crop.hpp"
 
 namespace shine {
 namespace tiled_evaluation_internal {
-
-Eigen::Vector3f centroid(const TriangleMesh& mesh, const Eigen::Vector3i& t) {
-    return (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3.0f;
-}
-
-double triangle_area_m2(const TriangleMesh& mesh, const Eigen::Vector3i& t) {
-    const Eigen::Vector3d a = mesh.vertices[t[0]].cast<double>();
-    return 0.5 * (mesh.vertices[t[1]].cast<double>() - a)
-                     .cross(mesh.vertices[t[2]].cast<double>() - a)
-                     .norm();
-}
 
 /// The square columns of the scene.
 struct TileGrid {
@@ -39,35 +30,6 @@ struct TileGrid {
     }
     std::size_t index(long ix, long iy) const { return static_cast<std::size_t>(iy * nx + ix); }
 };
-
-/// A mesh of the triangles `indices` of `mesh` (vertices renumbered; `observed` gives each one's
-/// flag). `slot` is scratch of mesh.vertices.size() entries, all -1, and left so.
-template <class Observed>
-TriangleMesh sub_mesh(const TriangleMesh& mesh, const std::vector<std::uint32_t>& indices,
-                      std::vector<int>& slot, const Observed& observed) {
-    TriangleMesh out;
-    out.origin_world_m = mesh.origin_world_m;
-    out.triangles.reserve(indices.size());
-    out.face_observed.reserve(indices.size());
-    for (const std::uint32_t i : indices) {
-        const Eigen::Vector3i& t = mesh.triangles[i];
-        Eigen::Vector3i renumbered;
-        for (int c = 0; c < 3; ++c) {
-            int& s = slot[t[c]];
-            if (s < 0) {
-                s = static_cast<int>(out.vertices.size());
-                out.vertices.push_back(mesh.vertices[t[c]]);
-            }
-            renumbered[c] = s;
-        }
-        out.triangles.push_back(renumbered);
-        out.face_observed.push_back(observed(i) ? 1 : 0);
-    }
-    for (const std::uint32_t i : indices) {
-        for (int c = 0; c < 3; ++c) slot[mesh.triangles[i][c]] = -1;
-    }
-    return out;
-}
 
 }  // namespace tiled_evaluation_internal
 
@@ -110,7 +72,7 @@ TiledEvaluation evaluate_meshes_tiled(const TriangleMesh& pred_mesh, const Trian
     Eigen::AlignedBox2d extent;
     for (const TriangleMesh* mesh : {&p, &ref}) {
         for (const Eigen::Vector3i& t : mesh->triangles) {
-            const Eigen::Vector3f c = centroid(*mesh, t);
+            const Eigen::Vector3f c = triangle_centroid(*mesh, t);
             if (c.allFinite()) extent.extend(c.head<2>().cast<double>());
         }
     }
@@ -132,14 +94,14 @@ TiledEvaluation evaluate_meshes_tiled(const TriangleMesh& pred_mesh, const Trian
 
     std::vector<std::vector<std::uint32_t>> pred_of(num_tiles), ref_of(num_tiles);
     for (std::size_t i = 0; i < p.triangles.size(); ++i) {
-        const Eigen::Vector3f c = centroid(p, p.triangles[i]);
+        const Eigen::Vector3f c = triangle_centroid(p, p.triangles[i]);
         if (!c.allFinite()) continue;
         pred_of[grid.index(grid.clamp_x(c.x()), grid.clamp_y(c.y()))].push_back(
             static_cast<std::uint32_t>(i));
     }
     std::vector<std::uint32_t> home_tile(ref.triangles.size(), 0);
     for (std::size_t i = 0; i < ref.triangles.size(); ++i) {
-        const Eigen::Vector3f c = centroid(ref, ref.triangles[i]);
+        const Eigen::Vector3f c = triangle_centroid(ref, ref.triangles[i]);
         if (!c.allFinite()) continue;
         home_tile[i] =
             static_cast<std::uint32_t>(grid.index(grid.clamp_x(c.x()), grid.clamp_y(c.y())));
@@ -160,25 +122,26 @@ TiledEvaluation evaluate_meshes_tiled(const TriangleMesh& pred_mesh, const Trian
     g.sample_density_per_m2 = std::numeric_limits<double>::infinity();
     double precision_sum = 0.0, accuracy_sum = 0.0, accuracy_weight = 0.0;
     double recall_sum = 0.0, completion_sum = 0.0;
-    for (const Eigen::Vector3i& t : ref.triangles) m.ref_area_m2 += triangle_area_m2(ref, t);
+    m.ref_area_m2 = mesh_surface_area_m2(ref);
 
     std::vector<int> pred_slot(p.vertices.size(), -1), ref_slot(ref.vertices.size(), -1);
     Progress progress("eval tiles", num_tiles, config.show_progress);
     for (std::size_t tile = 0; tile < num_tiles; ++tile) {
         progress.update(tile, std::to_string(result.tiles_scored) + " scored");
         if (pred_of[tile].empty() && ref_of[tile].empty()) continue;
-        const TriangleMesh ref_tile = sub_mesh(ref, ref_of[tile], ref_slot, [&](std::uint32_t i) {
-            return home_tile[i] == tile && (!ref_flags || ref.face_observed[i] != 0);
-        });
-        TriangleMesh pred_tile =
-            sub_mesh(p, pred_of[tile], pred_slot, [](std::uint32_t) { return true; });
-        pred_tile.face_observed.clear();
+        // The reference around the tile, observed only inside it.
+        TriangleMesh ref_tile = extract_triangles(ref, ref_of[tile], ref_slot);
+        ref_tile.face_observed.resize(ref_tile.triangles.size(), 1);
         bool observed = false;
-        for (const std::uint8_t o : ref_tile.face_observed) observed = observed || o != 0;
+        for (std::size_t j = 0; j < ref_of[tile].size(); ++j) {
+            std::uint8_t& o = ref_tile.face_observed[j];
+            o = home_tile[ref_of[tile][j]] == tile && o != 0;
+            observed = observed || o != 0;
+        }
+        TriangleMesh pred_tile = extract_triangles(p, pred_of[tile], pred_slot);
+        pred_tile.face_observed.clear();
         if (!observed) {
-            for (const Eigen::Vector3i& t : pred_tile.triangles) {
-                result.unscored_pred_area_m2 += triangle_area_m2(pred_tile, t);
-            }
+            result.unscored_pred_area_m2 += mesh_surface_area_m2(pred_tile);
             continue;
         }
         const MeshMetrics t = evaluate_meshes(pred_tile, ref_tile, config.eval);

@@ -48,9 +48,9 @@ RayHit cast_ray(const Caster& caster, const Eigen::Vector3d& origin_world,
 }
 
 /// Casts the rays of one scan against `caster` (a RayCaster, a BlockSelection or a
-/// MovingSceneSelection),
-/// in parallel; the range noise of ray i is drawn from a generator seeded by (noise_seed, i). The
-/// ray at azimuth step j is cast at time scan_time_s + sweep_s * j / azimuth_steps.
+/// MovingSceneSelection), in parallel; the range noise of ray i is drawn from a generator seeded
+/// by (noise_seed, i). The ray at azimuth step j is cast at time scan_time_s + sweep_s * j /
+/// azimuth_steps.
 /// With `step_poses` (one per azimuth step) the ray of step j leaves from step_poses[j] and the
 /// scan's points get their times (sweep_s * j / azimuth_steps).
 template <class Caster>

@@ -50,19 +50,19 @@ TriangleMesh make_mover_mesh(const MoverTrack& mover) {
     return make_box_mesh(box.min().cast<float>(), box.max().cast<float>());
 }
 
-MovingScene::MovingScene(const RayCaster& static_scene, MoverTracks tracks)
-    : static_mesh_(&static_scene), tracks_(std::move(tracks)) {
+MovingScene::MovingScene(const RayCaster* static_mesh, const BlockRayCaster* static_blocks,
+                         MoverTracks tracks)
+    : static_mesh_(static_mesh), static_blocks_(static_blocks), tracks_(std::move(tracks)) {
     for (const MoverTrack& mover : tracks_.movers) {
         bodies_.push_back(std::make_unique<RayCaster>(make_mover_mesh(mover)));
     }
 }
 
+MovingScene::MovingScene(const RayCaster& static_scene, MoverTracks tracks)
+    : MovingScene(&static_scene, nullptr, std::move(tracks)) {}
+
 MovingScene::MovingScene(const BlockRayCaster& static_scene, MoverTracks tracks)
-    : static_blocks_(&static_scene), tracks_(std::move(tracks)) {
-    for (const MoverTrack& mover : tracks_.movers) {
-        bodies_.push_back(std::make_unique<RayCaster>(make_mover_mesh(mover)));
-    }
-}
+    : MovingScene(nullptr, &static_scene, std::move(tracks)) {}
 
 std::size_t MovingScene::num_static_triangles() const {
     return static_mesh_ ? static_mesh_->num_triangles() : static_blocks_->num_triangles();

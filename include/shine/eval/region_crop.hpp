@@ -42,6 +42,18 @@ class VoxelRegion {
     std::unordered_set<std::uint64_t> voxels_;
 };
 
+/// The centroid of triangle `t` of `mesh` (the crops' test of where a triangle lies).
+inline Eigen::Vector3f triangle_centroid(const TriangleMesh& mesh, const Eigen::Vector3i& t) {
+    return (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3.0f;
+}
+
+/// The triangles `indices` of `mesh`, in that order, with their vertices (renumbered in order of
+/// first use), face_observed flags (if `mesh` has them) and frame. `vertex_slot` is scratch that
+/// must hold mesh.vertices.size() entries of -1 and is left so (callers cutting many pieces out
+/// of one big mesh reuse it).
+TriangleMesh extract_triangles(const TriangleMesh& mesh, const std::vector<std::uint32_t>& indices,
+                               std::vector<int>& vertex_slot);
+
 /// The triangles of `mesh` whose centroid lies in `region`, with their vertices (renumbered)
 /// and face_observed flags.
 TriangleMesh crop_mesh(const TriangleMesh& mesh, const VoxelRegion& region);

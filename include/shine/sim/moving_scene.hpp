@@ -71,6 +71,8 @@ class MovingScene {
 
   private:
     friend class MovingSceneSelection;
+    MovingScene(const RayCaster* static_mesh, const BlockRayCaster* static_blocks,
+                MoverTracks tracks);
     /// Adds mover m's hit at `time_s` to `best` when it is present and nearer.
     void cast_mover(std::size_t m, const Eigen::Vector3d& origin_m,
                     const Eigen::Vector3d& direction_unit, double t_min_m, double t_max_m,
