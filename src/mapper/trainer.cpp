@@ -41,7 +41,7 @@ struct Trainer::Chunk {
             const std::uint32_t first = static_cast<std::uint32_t>(b * stride);
             for (int k = 0; k < batch.corners[b]; ++k) {
                 const std::int32_t row = batch.rows[first + k];
-                records[row % kRowPartitions].push_back(first + k);
+                records[partition_of_row(row)].push_back(first + k);
             }
         }
     }

@@ -5,7 +5,8 @@
 // (seeded by seed, iteration and chunk) and computes its samples' gradients in parallel with TBB
 // (batch_gradient.hpp: corner lookups once per sample, the decoder as matrix products over the
 // chunk). The feature gradients are then reduced in parallel over a fixed partition of the
-// feature rows (row mod kRowPartitions): each partition adds its rows' contributions in chunk
+// feature rows (blocks of kRowsPerPartitionBlock consecutive rows, dealt round the partitions):
+// each partition adds its rows' contributions in chunk
 // order and runs the regulariser and Adam on its touched rows, so every row sees the same sums in
 // the same order whatever the number of threads. The decoder's gradient is summed in chunk order.
 // The result is therefore identical for a given seed whatever the number of threads.
@@ -151,6 +152,14 @@ class Trainer {
 
     /// Fixed number of row partitions of the parallel gradient reduction.
     static constexpr int kRowPartitions = 16;
+    /// Rows go to the partitions in blocks of this many consecutive rows, so that a cache line
+    /// of per-row data (16 local indices, 4 float16 rows) belongs to one partition: the threads
+    /// do not write to the same lines, and a partition's pass reads whole lines of its own.
+    static constexpr int kRowsPerPartitionBlock = 64;
+    /// The partition of feature row `row`.
+    static constexpr int partition_of_row(std::int32_t row) {
+        return (row / kRowsPerPartitionBlock) % kRowPartitions;
+    }
 
   private:
     struct Chunk;
