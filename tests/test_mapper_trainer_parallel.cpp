@@ -1,7 +1,8 @@
 // The parallel training step against its serial reference: Trainer::step and the importance
 // pass give bit-identical features, decoder weights and importance sums for 1 and 2 threads
 // (float32 and float16 maps, decoder trained or frozen, with the regulariser), the vectorised
-// Adam rows equal the scalar adam_update(), and the stage profile's medians and totals.
+// Adam rows equal the scalar adam_update(), the row partitions own whole cache lines, and the
+// stage profile's medians and totals.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -118,6 +119,26 @@ TEST(TrainerParallel, SameResultForOneAndTwoThreads) {
             EXPECT_GT(serial.last_regularization, 0.0);
         }
     }
+}
+
+TEST(TrainerParallel, RowPartitionsKeepCacheLinesTogetherAndShareTheRowsEvenly) {
+    // The reduction's partitions own whole 64-byte lines of per-row data, so that two threads
+    // never write the same line: 16 local indices (int32), 4 float16 rows of 8 features.
+    constexpr int kRows = Trainer::kRowPartitions * Trainer::kRowsPerPartitionBlock * 8;
+    std::vector<int> rows_per_partition(Trainer::kRowPartitions, 0);
+    for (std::int32_t row = 0; row < kRows; ++row) {
+        const int p = Trainer::partition_of_row(row);
+        ASSERT_GE(p, 0);
+        ASSERT_LT(p, Trainer::kRowPartitions);
+        ++rows_per_partition[p];
+        EXPECT_EQ(p, Trainer::partition_of_row(row / 16 * 16)) << row;
+        EXPECT_EQ(p, Trainer::partition_of_row(row / 4 * 4)) << row;
+    }
+    for (const int n : rows_per_partition) EXPECT_EQ(n, kRows / Trainer::kRowPartitions);
+    // Neighbouring blocks go to different partitions: rows touched together spread over both
+    // threads.
+    EXPECT_NE(Trainer::partition_of_row(0),
+              Trainer::partition_of_row(Trainer::kRowsPerPartitionBlock));
 }
 
 TEST(TrainerParallel, TrainingLowersTheLoss) {
