@@ -9,6 +9,7 @@
 #include "shine/core/error.hpp"
 #include "shine/core/random.hpp"
 #include "shine/io/binary_stream.hpp"
+#include "shine/mapper/partition_records.hpp"
 #include "shine/model/batch_gradient.hpp"
 #include "shine/sampling/ray_draw.hpp"
 
@@ -57,39 +58,6 @@ struct Trainer::Partition {
 };
 
 namespace {
-/// Adds one chunk's records of a row partition to the partition's compact gradients: a row met
-/// for the first time in this step gets the next local index (local_index[row], -1 before) and a
-/// zeroed gradient, then each record adds coefficient / N * h of its sample, in record order.
-/// Dim > 0 fixes the feature size at compile time; the arithmetic is the same either way.
-template <int Dim>
-void add_partition_records(const BatchGradient& batch, const std::vector<std::uint32_t>& records,
-                           int runtime_dim, float inv_n, std::int32_t* local_index,
-                           std::vector<std::int32_t>& rows, float* grads) {
-    const int dim = Dim > 0 ? Dim : runtime_dim;
-    const std::uint32_t stride = static_cast<std::uint32_t>(batch.corner_stride);
-    constexpr std::size_t kAhead = 16;  // local_index is read in random row order
-    for (std::size_t r = 0; r < records.size(); ++r) {
-        if (r + kAhead < records.size()) {
-            __builtin_prefetch(local_index + batch.rows[records[r + kAhead]], 1);
-        }
-        const std::uint32_t record = records[r];
-        const std::int32_t row = batch.rows[record];
-        std::int32_t& local = local_index[row];
-        float* grad;
-        if (local < 0) {
-            local = static_cast<std::int32_t>(rows.size());
-            rows.push_back(row);
-            grad = grads + std::size_t(local) * dim;
-            for (int l = 0; l < dim; ++l) grad[l] = 0.0f;
-        } else {
-            grad = grads + std::size_t(local) * dim;
-        }
-        const float coefficient = batch.coefficients[record] * inv_n;
-        const float* h = batch.h(record / stride);
-        for (int l = 0; l < dim; ++l) grad[l] += coefficient * h[l];
-    }
-}
-
 /// Throws ConfigError unless `sampling` draws 1 to kMaxSamplesPerRay samples per ray, none of
 /// its counts negative, and a batch of `batch_size` holds at least one ray.
 void check_samples_per_ray(const SamplingConfig& sampling, int batch_size) {
@@ -267,13 +235,8 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         if (grads.size() < num_records * dim) grads.resize(num_records * dim);
         if (rows.capacity() < num_records) rows.reserve(num_records);
         for (const Chunk& chunk : chunks_) {
-            if (dim == 8) {
-                add_partition_records<8>(chunk.batch, chunk.records[p], dim, inv_n,
-                                         local_index_.data(), rows, grads.data());
-            } else {
-                add_partition_records<0>(chunk.batch, chunk.records[p], dim, inv_n,
-                                         local_index_.data(), rows, grads.data());
-            }
+            add_partition_records(chunk.batch, chunk.records[p], dim, inv_n, local_index_.data(),
+                                  rows, grads.data());
         }
         // Per touched row: its state block, the regulariser's gradient (Eq. (5), on the rows this
         // iteration used: the set A of Eq. (3)) and the Adam step. Rows are in random order and
