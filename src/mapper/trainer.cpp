@@ -242,8 +242,8 @@ TrainStepStats Trainer::step(const RaySet& rays, std::size_t ray_begin, std::siz
         // iteration used: the set A of Eq. (3)) and the Adam step. Rows are in random order and
         // the loop is bound by cache misses: the blocks of rows a few ahead are requested early.
         // A row's state is looked up once, when it is requested; ring[j % kAhead] keeps its block.
-        // 8 rows ahead: 4 gained nothing more while the partitions shared cache lines, and 12
-        // gain nothing over 8 (docs/performance.md).
+        // 8 rows ahead: more than 4 gained nothing while the partitions shared cache lines, 8
+        // gains since, and 12 gain nothing over 8 (docs/performance.md).
         double regularization = 0.0;
         constexpr std::size_t kAhead = 8;
         float* ring[kAhead];

@@ -6,9 +6,9 @@
 // (batch_gradient.hpp: corner lookups once per sample, the decoder as matrix products over the
 // chunk). The feature gradients are then reduced in parallel over a fixed partition of the
 // feature rows (blocks of kRowsPerPartitionBlock consecutive rows, dealt round the partitions):
-// each partition adds its rows' contributions in chunk
-// order and runs the regulariser and Adam on its touched rows, so every row sees the same sums in
-// the same order whatever the number of threads. The decoder's gradient is summed in chunk order.
+// each partition adds its rows' contributions in chunk order (partition_records.hpp) and runs the
+// regulariser and Adam on its touched rows, so every row sees the same sums in the same order
+// whatever the number of threads. The decoder's gradient is summed in chunk order.
 // The result is therefore identical for a given seed whatever the number of threads.
 //
 // A float16 feature table is trained in mixed precision: the forward and backward passes read the
