@@ -203,3 +203,77 @@ TEST(BatchGradient, Float16FastGatherEqualsPlainGatherBitForBit) {
         same_bits(decoder_grads[0].data(), decoder_grads[1].data(), decoder_grads[0].size()))
         << "decoder gradient";
 }
+
+// The AVX kernels of the layers' products (hidden layers of 8, 16, 24 or 32 units, and the input
+// gradient to 8 to 32 features) do Eigen's multiplications and additions in Eigen's order, then
+// its bias, ReLU and mask: every activation, upstream gradient and input gradient equal bit for
+// bit with the kernels switched off. Shapes the kernels do not take (5 features, 40 units) fall
+// back to Eigen in the same pass; batch sizes cover the odd last column of the kernels' pairs.
+TEST(BatchedDecoder, AvxLayerProductsEqualEigenBitForBit) {
+    set_simd_enabled(true);
+    if (!use_avx_f16c()) GTEST_SKIP() << "the CPU has no AVX";
+    const DecoderConfig shapes[] = {
+        {8, {32, 32}, 3}, {8, {16, 24}, 4}, {16, {32}, 5}, {5, {32, 8}, 6}, {8, {40, 32}, 7}};
+    std::mt19937 rng(9);
+    std::normal_distribution<float> normal(0.0f, 0.7f);
+    for (const DecoderConfig& shape : shapes) {
+        Decoder decoder(shape);
+        // Biases that are not zero, so that the ReLU masks differ from the products' signs.
+        for (float& p : decoder.params()) p += 0.1f * normal(rng);
+        const std::vector<int>& dims = decoder.layer_dims();
+        const int K = decoder.num_layers();
+        for (const int batch_size : {1, 2, 3, 8, 37, 1001}) {
+            DecoderBatch batches[2];
+            Eigen::MatrixXf features(dims[0], batch_size);
+            for (int b = 0; b < batch_size; ++b) {
+                for (int l = 0; l < dims[0]; ++l) {
+                    // Some exact zeros of both signs among the features.
+                    const int pick = (b * 7 + l) % 23;
+                    features(l, b) = pick == 0 ? 0.0f : pick == 1 ? -0.0f : normal(rng);
+                }
+            }
+            for (int fast = 0; fast < 2; ++fast) {
+                set_simd_enabled(fast == 1);
+                prepare_batch(decoder, batch_size, batches[fast]);
+                batches[fast].features() = features;
+                forward_batch(decoder, batches[fast]);
+                input_gradient_batch(decoder, batches[fast]);
+            }
+            set_simd_enabled(true);
+            const std::string where = "decoder " + std::to_string(dims[0]) + "-" +
+                                      std::to_string(dims[1]) + ", batch " +
+                                      std::to_string(batch_size);
+            const auto expect_same = [&](const Eigen::MatrixXf& eigen, const Eigen::MatrixXf& avx,
+                                         const std::string& what) {
+                ASSERT_EQ(eigen.rows(), avx.rows()) << what << ", " << where;
+                ASSERT_EQ(eigen.cols(), avx.cols()) << what << ", " << where;
+#if defined(__FMA__)
+                // A build for a CPU with FMA (SHINE_NATIVE): Eigen fuses multiply-adds, the
+                // kernels may not; equal to float rounding.
+                for (Eigen::Index i = 0; i < eigen.size(); ++i) {
+                    EXPECT_NEAR(avx.data()[i], eigen.data()[i],
+                                kAbsTol + kRelTol * std::abs(eigen.data()[i]))
+                        << what << " entry " << i << ", " << where;
+                }
+#else
+                EXPECT_EQ(std::memcmp(eigen.data(), avx.data(), sizeof(float) * eigen.size()), 0)
+                    << what << ", " << where;
+#endif
+            };
+            for (int k = 1; k <= K; ++k) {
+                expect_same(batches[0].activations[k], batches[1].activations[k],
+                            "activations " + std::to_string(k));
+            }
+            for (int k = 1; k < K; ++k) {
+                expect_same(batches[0].upstream[k], batches[1].upstream[k],
+                            "upstream " + std::to_string(k));
+            }
+            expect_same(batches[0].input_gradient, batches[1].input_gradient, "input gradient");
+            // The masks let some gradients through and stop others.
+            const Eigen::MatrixXf& mask_source = batches[0].activations[1];
+            const Eigen::Index active = (mask_source.array() > 0.0f).count();
+            EXPECT_GT(active, 0) << where;
+            EXPECT_LT(active, mask_source.size()) << where;
+        }
+    }
+}

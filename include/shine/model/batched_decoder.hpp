@@ -1,8 +1,10 @@
 // The decoder (decoder.hpp) on a batch of samples at once: the same forward pass, input gradient
 // h = df/dF and parameter gradients as Decoder's per-sample calls, written as matrix products over
-// the batch (one column per sample) so that Eigen's blocked products do the work instead of one
+// the batch (one column per sample) so that blocked products do the work instead of one
 // matrix-vector product per sample. Equal to the per-sample calls up to float rounding
-// (tests/test_model_batched_decoder.cpp).
+// (tests/test_model_batched_decoder.cpp). The hidden layers' forward products and the input
+// gradient's products run in AVX kernels where the CPU has AVX (8, 16, 24 or 32 rows of result):
+// Eigen's operations in Eigen's order, so the same bits as Eigen's products.
 //
 // With A_0 = X (L x B, the batch's features), for the K weight layers
 //   A_{k+1} = relu(W_k A_k + b_k)        (no ReLU on the output, f = A_K, 1 x B)
@@ -26,6 +28,8 @@ struct DecoderBatch {
     Eigen::MatrixXf input_gradient;            ///< H = df/dF, L x B, after input_gradient()
     Eigen::MatrixXf product;                   ///< scratch
     Eigen::MatrixXf carry;                     ///< scratch (C_k of the double backward)
+    /// Scratch: a layer's weights transposed, for the AVX kernels of forward_batch().
+    Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> transposed_weights;
 
     /// The batch's input features, L x B: fill its columns before forward().
     Eigen::MatrixXf& features() { return activations.front(); }
