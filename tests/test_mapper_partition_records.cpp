@@ -37,13 +37,17 @@ BatchGradient random_batch(int samples, int dim, int num_rows, std::uint32_t see
     return batch;
 }
 
-/// The records of the batch's rows that are odd (one of two "partitions"), in record order.
-std::vector<std::uint32_t> odd_row_records(const BatchGradient& batch) {
-    std::vector<std::uint32_t> records;
+/// The records of the batch's corners whose rows are odd (one of two "partitions"), in sample and
+/// corner order, as the trainer sorts them: the corner's row and coefficient and the sample.
+std::vector<PartitionRecord> odd_row_records(const BatchGradient& batch) {
+    std::vector<PartitionRecord> records;
     for (std::size_t b = 0; b < batch.num_valid(); ++b) {
         for (int k = 0; k < batch.corners[b]; ++k) {
-            const std::uint32_t record = static_cast<std::uint32_t>(b * batch.corner_stride + k);
-            if (batch.rows[record] % 2 == 1) records.push_back(record);
+            const std::size_t slot = b * batch.corner_stride + k;
+            if (batch.rows[slot] % 2 == 1) {
+                records.push_back(
+                    {batch.rows[slot], batch.coefficients[slot], static_cast<std::uint32_t>(b)});
+            }
         }
     }
     return records;
@@ -57,23 +61,22 @@ struct Sums {
 /// The plain reference: a map from row to its position, each record's contribution added in
 /// order, every term computed as coefficient * inv_n, then times h.
 Sums reference_sums(const std::vector<const BatchGradient*>& batches,
-                    const std::vector<std::vector<std::uint32_t>>& records, int dim, float inv_n) {
+                    const std::vector<std::vector<PartitionRecord>>& records, int dim,
+                    float inv_n) {
     Sums sums;
     std::map<std::int32_t, std::size_t> position;
     for (std::size_t c = 0; c < batches.size(); ++c) {
         const BatchGradient& batch = *batches[c];
-        for (const std::uint32_t record : records[c]) {
-            const std::int32_t row = batch.rows[record];
-            auto [it, fresh] = position.emplace(row, sums.rows.size());
+        for (const PartitionRecord& record : records[c]) {
+            auto [it, fresh] = position.emplace(record.row, sums.rows.size());
             if (fresh) {
-                sums.rows.push_back(row);
+                sums.rows.push_back(record.row);
                 sums.grads.resize(sums.grads.size() + dim, 0.0f);
             }
-            const float coefficient = batch.coefficients[record] * inv_n;
-            const std::size_t sample = record / static_cast<std::uint32_t>(batch.corner_stride);
+            const float coefficient = record.coefficient * inv_n;
             for (int l = 0; l < dim; ++l) {
                 sums.grads[it->second * dim + l] +=
-                    coefficient * batch.decoder.input_gradient(l, Eigen::Index(sample));
+                    coefficient * batch.decoder.input_gradient(l, Eigen::Index(record.sample));
             }
         }
     }
@@ -83,7 +86,7 @@ Sums reference_sums(const std::vector<const BatchGradient*>& batches,
 /// Runs `add` over the batches in order with a fresh local index, as one partition of a step.
 template <typename Add>
 Sums partition_sums(const std::vector<const BatchGradient*>& batches,
-                    const std::vector<std::vector<std::uint32_t>>& records, int dim, int num_rows,
+                    const std::vector<std::vector<PartitionRecord>>& records, int dim, int num_rows,
                     Add add) {
     std::vector<std::int32_t> local_index(num_rows, -1);
     std::size_t total = 0;
@@ -109,19 +112,19 @@ TEST(PartitionRecords, EqualThePlainReferenceBitForBit) {
         const BatchGradient first = random_batch(120, dim, kRows, 1u + dim);
         const BatchGradient second = random_batch(90, dim, kRows, 100u + dim);
         const std::vector<const BatchGradient*> batches = {&first, &second};
-        const std::vector<std::vector<std::uint32_t>> records = {odd_row_records(first),
-                                                                 odd_row_records(second)};
+        const std::vector<std::vector<PartitionRecord>> records = {odd_row_records(first),
+                                                                   odd_row_records(second)};
         ASSERT_GT(records[0].size(), 500u);
         const Sums expected = reference_sums(batches, records, dim, inv_n);
         const Sums dispatched =
             partition_sums(batches, records, dim, kRows,
-                           [&](const BatchGradient& b, const std::vector<std::uint32_t>& r,
+                           [&](const BatchGradient& b, const std::vector<PartitionRecord>& r,
                                std::int32_t* local, std::vector<std::int32_t>& rows, float* grads) {
                                add_partition_records(b, r, dim, inv_n, local, rows, grads);
                            });
         const Sums runtime_dim =
             partition_sums(batches, records, dim, kRows,
-                           [&](const BatchGradient& b, const std::vector<std::uint32_t>& r,
+                           [&](const BatchGradient& b, const std::vector<PartitionRecord>& r,
                                std::int32_t* local, std::vector<std::int32_t>& rows, float* grads) {
                                add_partition_records<0>(b, r, dim, inv_n, local, rows, grads);
                            });

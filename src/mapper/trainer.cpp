@@ -28,21 +28,21 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 struct Trainer::Chunk {
     std::vector<RaySample> samples;  ///< the chunk's samples of the current step
     BatchGradient batch;
-    /// Per row partition, the records (valid sample b, corner k) as b * corner_stride + k, in
-    /// sample and corner order.
-    std::vector<std::uint32_t> records[kRowPartitions];
+    /// Per row partition, the records of the valid samples' corners, in sample and corner order.
+    std::vector<PartitionRecord> records[kRowPartitions];
     std::vector<float> decoder_grads;
     std::size_t valid = 0, drawn = 0;
 
     /// Sorts the batch's (sample, corner) records into the row partitions.
     void bucket_records() {
         for (auto& r : records) r.clear();
-        const int stride = batch.corner_stride;
+        const std::size_t stride = static_cast<std::size_t>(batch.corner_stride);
         for (std::size_t b = 0; b < batch.num_valid(); ++b) {
-            const std::uint32_t first = static_cast<std::uint32_t>(b * stride);
+            const std::size_t first = b * stride;
             for (int k = 0; k < batch.corners[b]; ++k) {
                 const std::int32_t row = batch.rows[first + k];
-                records[partition_of_row(row)].push_back(first + k);
+                records[partition_of_row(row)].push_back(
+                    {row, batch.coefficients[first + k], static_cast<std::uint32_t>(b)});
             }
         }
     }
@@ -381,15 +381,14 @@ std::size_t Trainer::accumulate_bce_gradient_norms(const RaySet& rays, std::size
         tbb::parallel_for(0, kRowPartitions, [&](int p) {
             Partition& partition = partitions_[p];
             for (const Chunk& chunk : chunks_) {
-                for (const std::uint32_t record : chunk.records[p]) {
-                    const std::int32_t row = chunk.batch.rows[record];
-                    std::int32_t& local = local_index_[row];
+                for (const PartitionRecord& record : chunk.records[p]) {
+                    std::int32_t& local = local_index_[record.row];
                     if (local < 0) {
                         local = static_cast<std::int32_t>(partition.touched_rows.size());
-                        partition.touched_rows.push_back(row);
+                        partition.touched_rows.push_back(record.row);
                         partition.grads.push_back(0.0f);
                     }
-                    partition.grads[std::size_t(local)] += chunk.batch.coefficients[record];
+                    partition.grads[std::size_t(local)] += record.coefficient;
                 }
             }
         });
