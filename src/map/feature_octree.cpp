@@ -44,10 +44,9 @@ openvdb::Coord to_coord(const Eigen::Vector3i& v) { return openvdb::Coord(v.x(),
 
 /// The cell of `p` on a level: its (0,0,0) corner in the level's index space, and p's position
 /// inside the cell in t.
-openvdb::Coord cell_base(const LevelIndex& level, double cell_size_m, const Eigen::Vector3f& p,
-                         float t[3]) {
+openvdb::Coord cell_base_inv(const LevelIndex& level, double inv, const Eigen::Vector3f& p,
+                             float t[3]) {
     const openvdb::Coord& shift = level.shift;
-    const double inv = 1.0 / cell_size_m;
     const double gx = p.x() * inv, gy = p.y() * inv, gz = p.z() * inv;
     const double fx = std::floor(gx), fy = std::floor(gy), fz = std::floor(gz);
     t[0] = static_cast<float>(gx - fx);
@@ -55,6 +54,12 @@ openvdb::Coord cell_base(const LevelIndex& level, double cell_size_m, const Eige
     t[2] = static_cast<float>(gz - fz);
     return openvdb::Coord(static_cast<int>(fx) + shift.x(), static_cast<int>(fy) + shift.y(),
                           static_cast<int>(fz) + shift.z());
+}
+
+/// As cell_base_inv() with inv = 1 / cell_size_m.
+openvdb::Coord cell_base(const LevelIndex& level, double cell_size_m, const Eigen::Vector3f& p,
+                         float t[3]) {
+    return cell_base_inv(level, 1.0 / cell_size_m, p, t);
 }
 
 /// The rows of the 8 corners of the cell at `base`; false if one of them is not allocated.
@@ -506,6 +511,8 @@ struct CellLookup::Accessors {
         std::int32_t rows[8];
     };
     std::vector<Recent> recent;
+    /// Per level, 1 / cell_size_m(level), as cell_base() computes it.
+    std::vector<double> inverse_cell_size;
 };
 
 CellLookup::CellLookup(const FeatureOctree& octree)
@@ -515,20 +522,26 @@ CellLookup::CellLookup(const FeatureOctree& octree)
         accessors_->levels.push_back(&level);
     }
     accessors_->recent.resize(accessors_->levels.size());
+    for (int level = 0; level < octree.num_levels(); ++level) {
+        accessors_->inverse_cell_size.push_back(1.0 / octree.cell_size_m(level));
+    }
 }
 
 CellLookup::~CellLookup() = default;
 
 bool CellLookup::find_cell(int level, const Eigen::Vector3f& point_map, LevelCorners& out) {
     const LevelIndex& index = *accessors_->levels[level];
-    const openvdb::Coord base = cell_base(index, octree_.cell_size_m(level), point_map, out.t);
+    const openvdb::Coord base =
+        cell_base_inv(index, accessors_->inverse_cell_size[level], point_map, out.t);
     Accessors::Recent& recent = accessors_->recent[level];
     if (!recent.valid || recent.base != base) {
         recent.base = base;
         recent.valid = true;
         recent.found = cell_rows(accessors_->accessors[level], index, base, recent.rows);
     }
-    if (recent.found) std::copy(recent.rows, recent.rows + 8, out.rows);
+    if (recent.found) {
+        for (int c = 0; c < 8; ++c) out.rows[c] = recent.rows[c];  // inline, not a memmove call
+    }
     return recent.found;
 }
 

@@ -177,9 +177,15 @@ void batch_loss_gradient(const NeuralSdf& sdf, CellLookup& lookup, const RaySamp
         out.sample.push_back(static_cast<std::uint32_t>(i));
         out.corners.push_back(static_cast<std::uint8_t>(encoded.num_corners));
         out.eikonal.push_back(eikonal ? 1 : 0);
-        std::copy(encoded.rows, encoded.rows + encoded.num_corners, out.rows.data() + b * stride);
-        std::copy(encoded.weights, encoded.weights + encoded.num_corners,
-                  out.coefficients.data() + b * stride);
+        // A level's 8 corners at a time: fixed-size copies the compiler inlines.
+        std::int32_t* rows = out.rows.data() + b * stride;
+        float* weights = out.coefficients.data() + b * stride;
+        for (int first = 0; first < encoded.num_corners; first += 8) {
+            for (int c = first; c < first + 8; ++c) {
+                rows[c] = encoded.rows[c];
+                weights[c] = encoded.weights[c];
+            }
+        }
         if (eikonal) {
             float* dw = out.weight_gradients_per_m.data() + b * stride * 3;
             for (int k = 0; k < encoded.num_corners; ++k) {

@@ -17,7 +17,7 @@ void encode_point(CellLookup& lookup, const FeatureOctree& octree, const Eigen::
     for (int level = 0; level < octree.num_levels(); ++level) {
         if (!lookup.find_cell(level, point_map, cell)) continue;
         const int base = out.num_corners;
-        std::copy(cell.rows, cell.rows + 8, out.rows + base);
+        for (int c = 0; c < 8; ++c) out.rows[base + c] = cell.rows[c];  // inline, not memmove
         if (with_gradients) {
             corner_weights_and_gradients(cell.t, static_cast<float>(octree.cell_size_m(level)),
                                          out.weights + base, out.weight_gradients_per_m + base,
