@@ -42,3 +42,29 @@ TEST(Mt19937_64Prefix, SameNormalDeviatesAsTheLibraryGenerator) {
         }
     }
 }
+
+TEST(Mt19937_64Prefix, GeneratorsSeededSideBySideGiveTheLibraryOutputs) {
+    // Four fresh generators seeded together, then read past the hand-over; and a group with one
+    // generator already read, which seed_first_outputs() leaves to seed itself.
+    for (std::uint64_t base = 0; base < 40; base += 4) {
+        for (const bool one_read : {false, true}) {
+            std::uint64_t seeds[4];
+            for (int g = 0; g < 4; ++g) seeds[g] = shine::mix_seed(base + g);
+            Mt19937_64Prefix r0(seeds[0]), r1(seeds[1]), r2(seeds[2]), r3(seeds[3]);
+            Mt19937_64Prefix* const generators[4] = {&r0, &r1, &r2, &r3};
+            std::mt19937_64 references[4] = {std::mt19937_64(seeds[0]), std::mt19937_64(seeds[1]),
+                                             std::mt19937_64(seeds[2]), std::mt19937_64(seeds[3])};
+            if (one_read) {
+                ASSERT_EQ(r2(), references[2]());
+            }
+            Mt19937_64Prefix::seed_first_outputs(generators);
+            for (int g = 0; g < 4; ++g) {
+                for (int i = 0; i < 400; ++i) {
+                    ASSERT_EQ((*generators[g])(), references[g]())
+                        << "seed " << seeds[g] << ", output " << i
+                        << (one_read ? ", one read" : "");
+                }
+            }
+        }
+    }
+}

@@ -285,16 +285,29 @@ void repack_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& 
     if (level.dead_slots > level.rows.size() - level.dead_slots) compact_rows(level);
 }
 
-void FeatureOctree::initial_feature(std::uint64_t seed, int level, const Eigen::Vector3i& corner,
-                                    float init_std, float* out, int feature_dim) {
+namespace {
+/// The seed of a corner's initial feature: a hash of the map's seed, the level and the corner.
+std::uint64_t corner_seed(std::uint64_t seed, int level, const openvdb::Coord& corner) {
     std::uint64_t h = mix64(seed);
     h = mix64(h ^ static_cast<std::uint64_t>(level));
     h = mix64(h ^ static_cast<std::uint32_t>(corner.x()));
     h = mix64(h ^ static_cast<std::uint32_t>(corner.y()));
     h = mix64(h ^ static_cast<std::uint32_t>(corner.z()));
-    Mt19937_64Prefix rng(h);  // std::mt19937_64(h)'s outputs, without its whole state
+    return h;
+}
+
+/// feature_dim draws from N(0, init_std^2) with `rng`.
+void draw_feature(Mt19937_64Prefix& rng, float init_std, float* out, int feature_dim) {
     std::normal_distribution<float> normal(0.0f, init_std);
     for (int i = 0; i < feature_dim; ++i) out[i] = normal(rng);
+}
+}  // namespace
+
+void FeatureOctree::initial_feature(std::uint64_t seed, int level, const Eigen::Vector3i& corner,
+                                    float init_std, float* out, int feature_dim) {
+    // std::mt19937_64's outputs for the corner's seed, without its whole state.
+    Mt19937_64Prefix rng(corner_seed(seed, level, to_coord(corner)));
+    draw_feature(rng, init_std, out, feature_dim);
 }
 
 FeatureOctree::FeatureOctree(const FeatureOctreeConfig& config)
@@ -423,17 +436,32 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
         });
     }
     const int dim = config_.feature_dim;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, new_corners.size(), 1024),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                          std::vector<float> initial(dim);
-                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                              const openvdb::Coord& c = new_corners[i].corner;
-                              initial_feature(config_.seed, new_corners[i].level,
-                                              Eigen::Vector3i(c.x(), c.y(), c.z()),
-                                              config_.init_std, initial.data(), dim);
-                              features_.set_row(old_rows + i, initial.data());
-                          }
-                      });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, new_corners.size(), 1024),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            // initial_feature() for four corners at a time, their generators
+            // seeded side by side (the same values).
+            std::vector<float> initial(dim);
+            const auto seed_of = [&](std::size_t i) {
+                return corner_seed(config_.seed, new_corners[i].level, new_corners[i].corner);
+            };
+            std::size_t i = range.begin();
+            for (; i + 4 <= range.end(); i += 4) {
+                Mt19937_64Prefix r0(seed_of(i)), r1(seed_of(i + 1)), r2(seed_of(i + 2)),
+                    r3(seed_of(i + 3));
+                Mt19937_64Prefix* const generators[4] = {&r0, &r1, &r2, &r3};
+                Mt19937_64Prefix::seed_first_outputs(generators);
+                for (int g = 0; g < 4; ++g) {
+                    draw_feature(*generators[g], config_.init_std, initial.data(), dim);
+                    features_.set_row(old_rows + i + g, initial.data());
+                }
+            }
+            for (; i != range.end(); ++i) {
+                Mt19937_64Prefix rng(seed_of(i));
+                draw_feature(rng, config_.init_std, initial.data(), dim);
+                features_.set_row(old_rows + i, initial.data());
+            }
+        });
     return added;
 }
 

@@ -41,6 +41,26 @@ class Mt19937_64Prefix {
         return z;
     }
 
+    /// Seeds, for N generators not read yet, the words their first output reads, all in one loop.
+    /// Each generator's seeding is a chain of dependent multiplications; N independent chains
+    /// side by side let the processor overlap them. The outputs are the ones each generator gives
+    /// on its own. Generators already read are left as they are.
+    template <int N>
+    static void seed_first_outputs(Mt19937_64Prefix* const (&generators)[N]) {
+        for (int g = 0; g < N; ++g) {
+            if (generators[g]->seeded_ != 1 || generators[g]->next_ != 0) return;
+        }
+        std::uint64_t prev[N];
+        for (int g = 0; g < N; ++g) prev[g] = generators[g]->words_[0];
+        for (int w = 1; w <= kShift; ++w) {  // output 0 reads words 0, 1 and kShift
+            for (int g = 0; g < N; ++g) {
+                prev[g] = kInitMultiplier * (prev[g] ^ (prev[g] >> 62)) + std::uint64_t(w);
+                generators[g]->words_[w] = prev[g];
+            }
+        }
+        for (int g = 0; g < N; ++g) generators[g]->seeded_ = kShift + 1;
+    }
+
   private:
     static constexpr int kShift = 156;  // mt19937_64's m; n = 312
     static constexpr std::uint64_t kInitMultiplier = 6364136223846793005ull;
