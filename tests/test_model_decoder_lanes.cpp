@@ -59,68 +59,69 @@ std::vector<float> interleave(const std::vector<float>& features, int dim) {
     }
     return interleaved;
 }
-}  // namespace
 
-// Both tests run the lanes with the AVX kernels (8 lanes in one register, where the CPU has AVX)
-// and with them switched off (Eigen's fixed-size arrays).
-TEST(DecoderLanes, ForwardLanesEqualsForwardForEveryLane) {
+/// Runs `check(config, path)` for each decoder shape, with the lanes' AVX kernels (8 lanes in one
+/// register, where the CPU has AVX) switched off (Eigen's fixed-size arrays) and on; `path` names
+/// which, for the messages.
+template <typename Check>
+void for_each_shape_and_lane_path(Check check) {
     for (const bool simd : {false, true}) {
         set_simd_enabled(simd);
         for (const DecoderConfig& config :
              {DecoderConfig{8, {32, 32}, 3}, DecoderConfig{5, {7}, 11},
               DecoderConfig{4, {16, 3, 9}, 2}, DecoderConfig{1, {}, 8}}) {
-            const Decoder decoder(config);
-            const int dim = config.input_dim;
-            const std::vector<float> features = random_features(kDecoderLanes, dim, 17);
-            const std::vector<float> interleaved = interleave(features, dim);
-            DecoderWorkspace lanes_ws, ws;
-            decoder.prepare(ws);
-            float out[kDecoderLanes];
-            decoder.forward_lanes(interleaved.data(), out, lanes_ws);
-            for (int s = 0; s < kDecoderLanes; ++s) {
-                const float reference = decoder.forward(features.data() + std::size_t(s) * dim, ws);
-                expect_same(out[s], reference,
-                            "input " + std::to_string(dim) + ", lane " + std::to_string(s) +
-                                (simd ? ", AVX" : ", plain"));
-            }
+            check(config, simd ? ", AVX" : ", plain");
         }
     }
     set_simd_enabled(true);
+}
+}  // namespace
+
+TEST(DecoderLanes, ForwardLanesEqualsForwardForEveryLane) {
+    for_each_shape_and_lane_path([](const DecoderConfig& config, const std::string& path) {
+        const Decoder decoder(config);
+        const int dim = config.input_dim;
+        const std::vector<float> features = random_features(kDecoderLanes, dim, 17);
+        const std::vector<float> interleaved = interleave(features, dim);
+        DecoderWorkspace lanes_ws, ws;
+        decoder.prepare(ws);
+        float out[kDecoderLanes];
+        decoder.forward_lanes(interleaved.data(), out, lanes_ws);
+        for (int s = 0; s < kDecoderLanes; ++s) {
+            const float reference = decoder.forward(features.data() + std::size_t(s) * dim, ws);
+            expect_same(out[s], reference,
+                        "input " + std::to_string(dim) + ", lane " + std::to_string(s) + path);
+        }
+    });
 }
 
 TEST(DecoderLanes, InputGradientLanesEqualsInputGradientForEveryLane) {
     // Zeros among the features make hidden units exactly zero (the ReLU mask) and rows with a
     // zero upstream value, which input_gradient() skips.
-    for (const bool simd : {false, true}) {
-        set_simd_enabled(simd);
-        for (const DecoderConfig& config :
-             {DecoderConfig{8, {32, 32}, 3}, DecoderConfig{5, {7}, 11},
-              DecoderConfig{4, {16, 3, 9}, 2}, DecoderConfig{1, {}, 8}}) {
-            const Decoder decoder(config);
-            const int dim = config.input_dim;
-            for (const unsigned seed : {17u, 18u, 19u}) {
-                const std::vector<float> features = random_features(kDecoderLanes, dim, seed);
-                const std::vector<float> interleaved = interleave(features, dim);
-                DecoderWorkspace lanes_ws, ws;
-                decoder.prepare(ws);
-                float out[kDecoderLanes];
-                std::vector<float> h_lanes(std::size_t(dim) * kDecoderLanes);
-                decoder.forward_lanes(interleaved.data(), out, lanes_ws);
-                decoder.input_gradient_lanes(lanes_ws, h_lanes.data());
-                std::vector<float> h(dim);
-                for (int s = 0; s < kDecoderLanes; ++s) {
-                    decoder.forward(features.data() + std::size_t(s) * dim, ws);
-                    decoder.input_gradient(ws, h.data());
-                    for (int l = 0; l < dim; ++l) {
-                        expect_same(h_lanes[std::size_t(l) * kDecoderLanes + s], h[l],
-                                    "input " + std::to_string(dim) + ", lane " + std::to_string(s) +
-                                        ", h_" + std::to_string(l) + (simd ? ", AVX" : ", plain"));
-                    }
+    for_each_shape_and_lane_path([](const DecoderConfig& config, const std::string& path) {
+        const Decoder decoder(config);
+        const int dim = config.input_dim;
+        for (const unsigned seed : {17u, 18u, 19u}) {
+            const std::vector<float> features = random_features(kDecoderLanes, dim, seed);
+            const std::vector<float> interleaved = interleave(features, dim);
+            DecoderWorkspace lanes_ws, ws;
+            decoder.prepare(ws);
+            float out[kDecoderLanes];
+            std::vector<float> h_lanes(std::size_t(dim) * kDecoderLanes);
+            decoder.forward_lanes(interleaved.data(), out, lanes_ws);
+            decoder.input_gradient_lanes(lanes_ws, h_lanes.data());
+            std::vector<float> h(dim);
+            for (int s = 0; s < kDecoderLanes; ++s) {
+                decoder.forward(features.data() + std::size_t(s) * dim, ws);
+                decoder.input_gradient(ws, h.data());
+                for (int l = 0; l < dim; ++l) {
+                    expect_same(h_lanes[std::size_t(l) * kDecoderLanes + s], h[l],
+                                "input " + std::to_string(dim) + ", lane " + std::to_string(s) +
+                                    ", h_" + std::to_string(l) + path);
                 }
             }
         }
-    }
-    set_simd_enabled(true);
+    });
 }
 
 TEST(DecoderLanes, QueueReturnsValuesInOrderAlsoForAPartialGroup) {

@@ -547,12 +547,11 @@ CellLookup::CellLookup(const FeatureOctree& octree)
     : octree_(octree), accessors_(std::make_unique<Accessors>()) {
     for (const auto& level : octree.impl().levels) {
         accessors_->accessors.emplace_back(level.grid->tree());
+        accessors_->inverse_cell_size.push_back(
+            1.0 / octree.cell_size_m(static_cast<int>(accessors_->levels.size())));
         accessors_->levels.push_back(&level);
     }
     accessors_->recent.resize(accessors_->levels.size());
-    for (int level = 0; level < octree.num_levels(); ++level) {
-        accessors_->inverse_cell_size.push_back(1.0 / octree.cell_size_m(level));
-    }
 }
 
 CellLookup::~CellLookup() = default;

@@ -1,7 +1,5 @@
 #include "shine/model/batched_decoder.hpp"
 
-#include <algorithm>
-
 #include "shine/core/cpu_features.hpp"
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -100,26 +98,19 @@ __attribute__((target("avx"))) void layer_product_avx(const float* M, int D, con
     }
 }
 
-/// The kernel for `rows` rows of the result (8, 16, 24 or 32); false for other sizes, which
-/// Eigen then computes.
+/// The kernel for `rows` rows of the result, a size avx_layer() accepts (8, 16, 24 or 32).
 template <Epilogue E>
-bool layer_product(int rows, const float* M, int D, const float* in, Eigen::Index B,
+void layer_product(int rows, const float* M, int D, const float* in, Eigen::Index B,
                    const float* bias, const float* activation, float* out) {
-    switch (rows) {
-        case 8:
-            layer_product_avx<1, E>(M, D, in, B, bias, activation, out);
-            return true;
-        case 16:
-            layer_product_avx<2, E>(M, D, in, B, bias, activation, out);
-            return true;
-        case 24:
-            layer_product_avx<3, E>(M, D, in, B, bias, activation, out);
-            return true;
-        case 32:
-            layer_product_avx<4, E>(M, D, in, B, bias, activation, out);
-            return true;
+    switch (rows / 8) {
+        case 1:
+            return layer_product_avx<1, E>(M, D, in, B, bias, activation, out);
+        case 2:
+            return layer_product_avx<2, E>(M, D, in, B, bias, activation, out);
+        case 3:
+            return layer_product_avx<3, E>(M, D, in, B, bias, activation, out);
         default:
-            return false;
+            return layer_product_avx<4, E>(M, D, in, B, bias, activation, out);
     }
 }
 
@@ -128,8 +119,8 @@ bool layer_product(int rows, const float* M, int D, const float* in, Eigen::Inde
 /// operations they follow. Eigen takes a matrix-vector product for one column and a
 /// coefficient-wise one when depth + rows + B < 20 (EIGEN_GEMM_TO_COEFFBASED_THRESHOLD).
 bool avx_layer(int rows, int depth, Eigen::Index B) {
-    return (rows == 8 || rows == 16 || rows == 24 || rows == 32) && B >= 2 &&
-           depth + rows + B >= 20 && use_avx_f16c();
+    return rows % 8 == 0 && rows >= 8 && rows <= 32 && B >= 2 && depth + rows + B >= 20 &&
+           use_avx_f16c();
 }
 #endif
 }  // namespace

@@ -28,8 +28,7 @@ class Mt19937_64Prefix {
         if (next_ >= kShift) return from_library();
         const int i = next_++;
         while (seeded_ <= i + kShift) {  // the seeding recurrence, word by word
-            const std::uint64_t prev = words_[seeded_ - 1];
-            words_[seeded_] = kInitMultiplier * (prev ^ (prev >> 62)) + std::uint64_t(seeded_);
+            words_[seeded_] = seed_word(words_[seeded_ - 1], seeded_);
             ++seeded_;
         }
         const std::uint64_t y = (words_[i] & kUpperMask) | (words_[i + 1] & kLowerMask);
@@ -44,7 +43,8 @@ class Mt19937_64Prefix {
     /// Seeds, for N generators not read yet, the words their first output reads, all in one loop.
     /// Each generator's seeding is a chain of dependent multiplications; N independent chains
     /// side by side let the processor overlap them. The outputs are the ones each generator gives
-    /// on its own. Generators already read are left as they are.
+    /// on its own. If one of them was read already, none is seeded here: each then seeds itself
+    /// as it is read.
     template <int N>
     static void seed_first_outputs(Mt19937_64Prefix* const (&generators)[N]) {
         for (int g = 0; g < N; ++g) {
@@ -54,7 +54,7 @@ class Mt19937_64Prefix {
         for (int g = 0; g < N; ++g) prev[g] = generators[g]->words_[0];
         for (int w = 1; w <= kShift; ++w) {  // output 0 reads words 0, 1 and kShift
             for (int g = 0; g < N; ++g) {
-                prev[g] = kInitMultiplier * (prev[g] ^ (prev[g] >> 62)) + std::uint64_t(w);
+                prev[g] = seed_word(prev[g], w);
                 generators[g]->words_[w] = prev[g];
             }
         }
@@ -67,6 +67,11 @@ class Mt19937_64Prefix {
     static constexpr std::uint64_t kMatrixA = 0xb5026f5aa96619e9ull;
     static constexpr std::uint64_t kUpperMask = ~std::uint64_t(0) << 31;
     static constexpr std::uint64_t kLowerMask = (std::uint64_t(1) << 31) - 1;
+
+    /// Seeded word `index` from the one before it (std::mt19937_64's initialisation).
+    static std::uint64_t seed_word(std::uint64_t prev, int index) {
+        return kInitMultiplier * (prev ^ (prev >> 62)) + std::uint64_t(index);
+    }
 
     result_type from_library() {
         if (!library_) {
