@@ -45,6 +45,49 @@ double median(std::vector<double> v) {
     return v[mid];
 }
 
+/// Finer azimuth steps than this many columns per turn are not a LiDAR's.
+constexpr int kMaxColumns = 32768;
+/// More clusters than this are not sought (noise once the rings are taken).
+constexpr std::size_t kMaxClusters = 512;
+
+/// The ring nearest to a point of elevation `elevation` (beam frame) whose distance from the spin
+/// axis is 1 / `inv_radius` (0: a direction, seen far away): ring k is seen there at
+/// atan(tan(elevation_k) + height_k * inv_radius). -1 if the point is more than half a ring
+/// spacing above the top ring or below the bottom one.
+int nearest_ring(const SphericalLidarModel& model, double elevation, double inv_radius) {
+    const std::vector<double>& rings = model.elevations_rad;
+    const std::size_t n = rings.size();
+    if (n < 2) return -1;
+    const double t = std::tan(elevation);
+    // atan is monotonic: the nearest ring is the nearest seen above or the nearest seen below.
+    int above = -1, below = -1;
+    double t_above = std::numeric_limits<double>::infinity();
+    double t_below = -std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < n; ++k) {
+        const double h = model.beam_heights_m.empty() ? 0.0 : model.beam_heights_m[k];
+        const double t_k = std::tan(rings[k]) + h * inv_radius;
+        if (t_k > t) {
+            if (t_k < t_above) t_above = t_k, above = int(k);
+        } else if (t_k > t_below) {
+            t_below = t_k, below = int(k);
+        }
+    }
+    if (above < 0) {
+        return elevation - std::atan(t_below) > 0.5 * (rings[0] - rings[1]) ? -1 : below;
+    }
+    if (below < 0) {
+        return std::atan(t_above) - elevation > 0.5 * (rings[n - 2] - rings[n - 1]) ? -1 : above;
+    }
+    return std::atan(t_above) - elevation < elevation - std::atan(t_below) ? above : below;
+}
+
+/// Column of azimuth `azimuth` (beam frame).
+int column_of(const SphericalLidarModel& model, double azimuth) {
+    int c = static_cast<int>(std::floor((kPi - azimuth) / model.azimuth_step_rad()));
+    c %= model.num_columns;
+    return c < 0 ? c + model.num_columns : c;
+}
+
 }  // namespace
 
 double SphericalLidarModel::azimuth_step_rad() const { return 2.0 * kPi / num_columns; }
@@ -64,43 +107,36 @@ Eigen::Vector3d SphericalLidarModel::direction_sensor(int row, int col) const {
 bool SphericalLidarModel::pixel_of(const Eigen::Vector3d& direction_sensor, int& row,
                                    int& col) const {
     const Eigen::Vector3d d = R_sensor_beams.transpose() * direction_sensor;
-    const double norm = d.norm();
-    if (!(norm > 0.0) || elevations_rad.size() < 2) return false;
-    const double elevation = std::asin(std::clamp(d.z() / norm, -1.0, 1.0));
-    // elevations_rad is descending: find the nearest ring.
-    const auto it = std::lower_bound(elevations_rad.begin(), elevations_rad.end(), elevation,
-                                     [](double ring, double e) { return ring > e; });
-    std::size_t r = std::size_t(it - elevations_rad.begin());
-    const std::size_t n = elevations_rad.size();
-    if (r == 0) {
-        if (elevation - elevations_rad[0] > 0.5 * (elevations_rad[0] - elevations_rad[1])) {
-            return false;
-        }
-    } else if (r == n) {
-        r = n - 1;
-        if (elevations_rad[n - 1] - elevation >
-            0.5 * (elevations_rad[n - 2] - elevations_rad[n - 1])) {
-            return false;
-        }
-    } else if (elevations_rad[r - 1] - elevation < elevation - elevations_rad[r]) {
-        r -= 1;
-    }
-    row = static_cast<int>(r);
-    const double azimuth = std::atan2(d.y(), d.x());
-    int c = static_cast<int>(std::floor((kPi - azimuth) / azimuth_step_rad()));
-    c %= num_columns;
-    if (c < 0) c += num_columns;
-    col = c;
+    if (!(d.norm() > 0.0)) return false;
+    const int r = nearest_ring(*this, std::atan2(d.z(), std::hypot(d.x(), d.y())), 0.0);
+    if (r < 0) return false;
+    row = r;
+    col = column_of(*this, std::atan2(d.y(), d.x()));
+    return true;
+}
+
+bool SphericalLidarModel::pixel_of_point(const Eigen::Vector3d& point_sensor, int& row,
+                                         int& col) const {
+    const Eigen::Vector3d d = R_sensor_beams.transpose() * point_sensor;
+    const double radius = std::hypot(d.x(), d.y());
+    if (!(radius > 0.0)) return pixel_of(point_sensor, row, col);
+    const int r = nearest_ring(*this, std::atan2(d.z(), radius), 1.0 / radius);
+    if (r < 0) return false;
+    row = r;
+    col = column_of(*this, std::atan2(d.y(), d.x()));
     return true;
 }
 
 SphericalLidarModel infer_spherical_lidar(const std::vector<Eigen::Vector3f>& points_sensor,
                                           const SphericalLidarConfig& config) {
-    std::vector<Eigen::Vector3d> units;
+    std::vector<Eigen::Vector3d> points, units;
     for (const Eigen::Vector3f& p : points_sensor) {
         const Eigen::Vector3d q = p.cast<double>();
         const double r = q.norm();
-        if (q.allFinite() && r >= config.min_range_m && r > 0.0) units.push_back(q / r);
+        if (q.allFinite() && r >= config.min_range_m && r > 0.0) {
+            points.push_back(q);
+            units.push_back(q / r);
+        }
     }
     if (units.size() < 16) {
         throw DataError("cannot infer the LiDAR's beam layout: only " +
@@ -137,56 +173,138 @@ SphericalLidarModel infer_spherical_lidar(const std::vector<Eigen::Vector3f>& po
     SphericalLidarModel model;
     model.R_sensor_beams = frame_with_z(axis_of(roll, pitch));
 
-    // 2. Rings: clusters of sorted elevations.
+    // 2. Rings, each found in focus: a histogram of elevations per candidate beam height.
     struct Ray {
-        double elevation, azimuth;
+        double z_m, radius_m, azimuth;
     };
     std::vector<Ray> rays;
-    rays.reserve(units.size());
-    for (const Eigen::Vector3d& u : units) {
-        const Eigen::Vector3d d = model.R_sensor_beams.transpose() * u;
-        rays.push_back({std::asin(std::clamp(d.z(), -1.0, 1.0)), std::atan2(d.y(), d.x())});
+    rays.reserve(points.size());
+    for (const Eigen::Vector3d& p : points) {
+        const Eigen::Vector3d d = model.R_sensor_beams.transpose() * p;
+        rays.push_back({d.z(), std::hypot(d.x(), d.y()), std::atan2(d.y(), d.x())});
     }
-    std::sort(rays.begin(), rays.end(),
-              [](const Ray& a, const Ray& b) { return a.elevation < b.elevation; });
-    const double gap = config.min_ring_gap_deg * kDegToRad;
-    std::vector<std::pair<std::size_t, std::size_t>> clusters;  // [first, last)
-    std::size_t first = 0;
-    for (std::size_t i = 1; i <= rays.size(); ++i) {
-        if (i == rays.size() || rays[i].elevation - rays[i - 1].elevation > gap) {
-            clusters.emplace_back(first, i);
-            first = i;
+    const int half_rows =
+        config.max_beam_height_m > 0.0 && config.beam_height_step_m > 0.0
+            ? static_cast<int>(config.max_beam_height_m / config.beam_height_step_m + 1e-9)
+            : 0;
+    const int rows = 2 * half_rows + 1;
+    const auto height_of = [&](int row) { return (row - half_rows) * config.beam_height_step_m; };
+    // Bins a quarter of the gap that ends a ring: such a gap is 4 empty bins, whatever the phase.
+    const double bin_rad = 0.25 * config.min_ring_gap_deg * kDegToRad;
+    const int bins = static_cast<int>(std::ceil(kPi / bin_rad)) + 1;
+    const auto bin_of = [&](const Ray& ray, int row) {
+        const double e = std::atan2(ray.z_m - height_of(row), ray.radius_m);
+        return std::clamp(static_cast<int>(std::floor((e + 0.5 * kPi) / bin_rad)), 0, bins - 1);
+    };
+    std::vector<int> counts(std::size_t(rows) * bins, 0);
+    const auto add_votes = [&](const std::vector<std::size_t>& which, int sign) {
+        tbb::parallel_for(0, rows, [&](int row) {
+            int* row_counts = counts.data() + std::size_t(row) * bins;
+            for (const std::size_t i : which) row_counts[bin_of(rays[i], row)] += sign;
+        });
+    };
+    std::vector<std::size_t> remaining(rays.size());
+    for (std::size_t i = 0; i < rays.size(); ++i) remaining[i] = i;
+    add_votes(remaining, +1);
+    // A ring whose points lie at one range (the ground near the car) is sharp from many beam
+    // heights; it keeps the one nearest the previous ring's (a block of lasers shares a height),
+    // or the origin for the first: rows are searched in that order and ties keep the first.
+    std::vector<int> row_order(rows);
+    const auto order_rows_from = [&](int centre) {
+        for (int row = 0; row < rows; ++row) row_order[row] = row;
+        std::stable_sort(row_order.begin(), row_order.end(),
+                         [&](int a, int b) { return std::abs(a - centre) < std::abs(b - centre); });
+    };
+    order_rows_from(half_rows);
+    const int gap_bins = 4;
+    struct Cluster {
+        double height_m;
+        std::vector<std::size_t> members;
+    };
+    std::vector<Cluster> clusters;
+    int first_peak = 0;
+    while (clusters.size() < kMaxClusters && !remaining.empty()) {
+        int best = 0, best_row = 0, best_bin = 0;
+        for (const int row : row_order) {
+            const int* c = counts.data() + std::size_t(row) * bins;
+            for (int b = 1; b + 1 < bins; ++b) {
+                const int window = c[b - 1] + c[b] + c[b + 1];
+                if (window > best) best = window, best_row = row, best_bin = b;
+            }
         }
+        if (clusters.empty()) first_peak = best;
+        if (best == 0 || best < 0.25 * config.min_ring_share * first_peak) break;
+        // The ring spans the peak's row until gap_bins empty bins on either side. A bin holding
+        // under 1 % of the peak bin's count counts as empty: a thin ring's close points, a little
+        // out of focus at this beam-height step, would bridge the gap to its neighbour.
+        const int* c = counts.data() + std::size_t(best_row) * bins;
+        const int peak_bin = std::max({c[best_bin - 1], c[best_bin], c[best_bin + 1]});
+        const auto occupied = [&](int b) { return c[b] > 0 && 100 * c[b] >= peak_bin; };
+        int lo = best_bin - 1, hi = best_bin + 1;
+        for (int b = lo - 1, empty = 0; b >= 0 && empty < gap_bins; --b) {
+            empty = occupied(b) ? 0 : empty + 1;
+            if (occupied(b)) lo = b;
+        }
+        for (int b = hi + 1, empty = 0; b < bins && empty < gap_bins; ++b) {
+            empty = occupied(b) ? 0 : empty + 1;
+            if (occupied(b)) hi = b;
+        }
+        Cluster cluster{height_of(best_row), {}};
+        std::vector<std::size_t> rest;
+        for (const std::size_t i : remaining) {
+            const int b = bin_of(rays[i], best_row);
+            (b >= lo && b <= hi ? cluster.members : rest).push_back(i);
+        }
+        add_votes(cluster.members, -1);
+        remaining.swap(rest);
+        order_rows_from(best_row);
+        clusters.push_back(std::move(cluster));
     }
     std::vector<double> sizes;
-    for (const auto& [a, b] : clusters) sizes.push_back(double(b - a));
-    const double min_size = config.min_ring_share * median(sizes);
-    std::vector<double> azimuth_gaps;
-    for (const auto& [a, b] : clusters) {
-        if (double(b - a) < min_size) continue;
-        model.elevations_rad.push_back(rays[a + (b - a) / 2].elevation);
-        // 3. Azimuth gaps within the ring.
-        std::vector<double> azimuths;
-        for (std::size_t i = a; i < b; ++i) azimuths.push_back(rays[i].azimuth);
-        std::sort(azimuths.begin(), azimuths.end());
-        for (std::size_t i = 1; i < azimuths.size(); ++i) {
-            const double d = azimuths[i] - azimuths[i - 1];
-            if (d > 1e-9) azimuth_gaps.push_back(d);
+    for (const Cluster& cluster : clusters) sizes.push_back(double(cluster.members.size()));
+    const double min_size = sizes.empty() ? 0.0 : config.min_ring_share * median(sizes);
+    struct Ring {
+        double elevation_rad, height_m, azimuth_step_rad;
+    };
+    std::vector<Ring> rings;
+    for (const Cluster& cluster : clusters) {
+        if (double(cluster.members.size()) < min_size) continue;
+        std::vector<double> elevations, azimuths;
+        for (const std::size_t i : cluster.members) {
+            elevations.push_back(std::atan2(rays[i].z_m - cluster.height_m, rays[i].radius_m));
+            azimuths.push_back(rays[i].azimuth);
         }
+        // 3. The azimuth step: gaps between successive azimuths within the ring; finer gaps than
+        // any LiDAR's step are duplicated returns (or dual returns) and are ignored.
+        std::sort(azimuths.begin(), azimuths.end());
+        std::vector<double> gaps;
+        for (std::size_t i = 1; i < azimuths.size(); ++i) {
+            const double gap = azimuths[i] - azimuths[i - 1];
+            if (gap > kPi / kMaxColumns) gaps.push_back(gap);
+        }
+        rings.push_back({median(elevations), cluster.height_m, gaps.empty() ? 0.0 : median(gaps)});
     }
-    std::reverse(model.elevations_rad.begin(), model.elevations_rad.end());
-    if (model.elevations_rad.size() < 2) {
+    if (rings.size() < 2) {
         throw DataError("cannot infer the LiDAR's beam layout: the elevations of " +
                         std::to_string(units.size()) + " points form " +
-                        std::to_string(model.elevations_rad.size()) +
+                        std::to_string(rings.size()) +
                         " ring(s); a spinning LiDAR's scan has several");
     }
-    const double step = azimuth_gaps.empty() ? 0.0 : median(azimuth_gaps);
+    std::sort(rings.begin(), rings.end(),
+              [](const Ring& a, const Ring& b) { return a.elevation_rad > b.elevation_rad; });
+    std::vector<double> steps;
+    for (const Ring& ring : rings) {
+        model.elevations_rad.push_back(ring.elevation_rad);
+        model.beam_heights_m.push_back(ring.height_m);
+        if (ring.azimuth_step_rad > 0.0) steps.push_back(ring.azimuth_step_rad);
+    }
+    const double step = steps.empty() ? 0.0 : median(steps);
     model.num_columns = step > 0.0 ? static_cast<int>(std::lround(2.0 * kPi / step)) : 0;
-    if (model.num_columns < 8 || model.num_columns > 32768) {
+    if (model.num_columns < 8 || model.num_columns > kMaxColumns) {
         throw DataError(
             "cannot infer the LiDAR's azimuth step: " + std::to_string(model.num_columns) +
-            " columns per turn found (expected 8 to 32768)");
+            " columns per turn found in " + std::to_string(rings.size()) +
+            " rings (expected 8 to " + std::to_string(kMaxColumns) + ")");
     }
     return model;
 }
@@ -213,7 +331,7 @@ PixelRays scan_pixel_rays(const SphericalLidarModel& model,
             continue;
         }
         int row = 0, col = 0;
-        if (!model.pixel_of(q, row, col)) continue;
+        if (!model.pixel_of_point(q, row, col)) continue;
         const std::size_t i = std::size_t(row) * rays.width + col;
         float& measured = rays.measured_range_m[i];
         if (std::isnan(measured) || range_m < measured) {

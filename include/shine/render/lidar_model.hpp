@@ -7,16 +7,28 @@
 //      levelled body frame), where a ring is a cone around a tilted axis. The axis is the one
 //      around which the points' elevation angles are sharpest (largest sum of squared histogram
 //      counts), found by a coarse-to-fine search over tilts up to max_tilt_deg;
-//   2. the rings: the points' elevations about that axis, sorted, split wherever two neighbours
-//      differ by more than min_ring_gap_deg; clusters holding fewer than min_ring_share of the
-//      median cluster's points are noise (mixed pixels between rings) and dropped; each ring's
-//      elevation is its cluster's median;
-//   3. the azimuth step: the median gap between successive azimuths within a ring, rounded so a
+//   2. the rings: a beam need not leave from the sensor's origin. An HDL-64E's lasers sit 0.12 m
+//      (lower block) and 0.21 m (upper block) above it, so each ring is a cone whose apex is on
+//      the spin axis at the ring's own beam height h: z = r_xy tan(elevation) + h. Seen from the
+//      origin, such a ring's elevation drifts by h / r_xy with range (over a degree within 10 m)
+//      and the HDL-64E's upper rings, a third of a degree apart, merge. So the rings are found in
+//      a histogram of elevations measured from every candidate beam height (up to
+//      max_beam_height_m either way): the tallest peak is a ring seen in focus; it extends from
+//      the peak over that row's occupied bins until an empty stretch of min_ring_gap_deg (so a
+//      thick ring of a deskewed scan stays whole); its points are taken out and the next peak
+//      is sought. Clusters holding fewer than min_ring_share of the median cluster's points are
+//      noise (mixed pixels between rings) and dropped; each ring's elevation is its points'
+//      median about its beam height;
+//   3. the azimuth step: per ring, the median gap between its successive azimuths, ignoring
+//      gaps finer than any LiDAR's step (duplicated returns); the median over rings, rounded so a
 //      whole number of columns fills the turn.
 // Pixels: row 0 is the highest ring; column c looks at azimuth pi - (c + 0.5) * step about the
 // axis, so the image centre looks along the sensor's +x (forward), the left edge backwards over
-// +y (left): a panorama seen from the sensor. Points closer than min_range_m are not used for
-// inference, since the beams' origin offsets smear the elevations of close points.
+// +y (left): a panorama seen from the sensor. A measured point goes to the ring whose cone
+// passes nearest to it (pixel_of_point); a bare direction, or a pixel's centre ray, is the ring
+// seen from the origin far away, where beam heights vanish against the range. Points closer than
+// min_range_m are not used for inference: the beams' horizontal offsets (and, for the axis
+// search, their heights) smear the elevations of close points.
 #pragma once
 
 #include <Eigen/Core>
@@ -29,10 +41,12 @@ namespace shine {
 /// How the beam layout is inferred; the defaults suit 16- to 128-beam spinning LiDARs.
 struct SphericalLidarConfig {
     double min_range_m = 2.0;        ///< closer points are not used for inference
-    double min_ring_gap_deg = 0.15;  ///< sorted elevations further apart start a new ring
+    double min_ring_gap_deg = 0.15;  ///< an empty elevation stretch this wide ends a ring
     double min_ring_share = 0.2;     ///< rings with fewer points than this x the median are noise
     double max_tilt_deg = 30.0;      ///< spin-axis search range around sensor z; 0 = sensor z
-    std::size_t max_points = 20000;  ///< points used for the axis search (an even subsample)
+    double max_beam_height_m = 0.3;  ///< beam-height search range around the origin; 0 = origin
+    double beam_height_step_m = 0.005;  ///< step of that search
+    std::size_t max_points = 20000;     ///< points used for the axis search (an even subsample)
 };
 
 /// Rings x columns of a spinning LiDAR, about a spin axis in the sensor frame.
@@ -40,6 +54,8 @@ struct SphericalLidarModel {
     /// Columns of R_sensor_beams are the beam frame's axes in the sensor frame; z is the spin axis.
     Eigen::Matrix3d R_sensor_beams = Eigen::Matrix3d::Identity();
     std::vector<double> elevations_rad;  ///< one per ring, row 0 (highest) first, descending
+    /// One per ring: where its beams cross the spin axis, above the sensor origin (m).
+    std::vector<double> beam_heights_m;
     int num_columns = 0;
 
     int height() const { return static_cast<int>(elevations_rad.size()); }
@@ -53,17 +69,21 @@ struct SphericalLidarModel {
     /// The pixel a direction (any length > 0, sensor frame) falls in: the nearest ring, unless it
     /// is more than half a ring spacing above the top ring or below the bottom one (false).
     bool pixel_of(const Eigen::Vector3d& direction_sensor, int& row, int& col) const;
+    /// The pixel of a measured point (sensor frame): as pixel_of, but the nearest ring is the one
+    /// whose cone (elevation from its beam height) passes nearest to the point.
+    bool pixel_of_point(const Eigen::Vector3d& point_sensor, int& row, int& col) const;
 };
 
 /// Infers the model from a scan's points (sensor frame). Throws DataError if fewer than two rings
-/// or fewer than 8 columns are found (say which and how many points were usable).
+/// or fewer than 8 (or more than 32768) columns are found (say which and how many points were
+/// usable).
 SphericalLidarModel infer_spherical_lidar(const std::vector<Eigen::Vector3f>& points_sensor,
                                           const SphericalLidarConfig& config = {});
 
 /// The pixel rays of `model` with the scan's returns: each return whose range is in
-/// [min_range_m, max_range_m] goes to its pixel (the nearest return wins where several fall in
-/// one); a pixel with a return looks along that return's own direction (so its range error is the
-/// held-out yardstick's error of that ray), one without along its centre.
+/// [min_range_m, max_range_m] goes to its pixel (pixel_of_point; the nearest return wins where
+/// several fall in one); a pixel with a return looks along that return's own direction (so its
+/// range error is the held-out yardstick's error of that ray), one without along its centre.
 PixelRays scan_pixel_rays(const SphericalLidarModel& model,
                           const std::vector<Eigen::Vector3f>& points_sensor, double min_range_m,
                           double max_range_m);
