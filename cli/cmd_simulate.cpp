@@ -1,17 +1,26 @@
 // `shine simulate`: writes the example data set — a procedural street scanned by a simulated
 // 64-beam spinning LiDAR — in the KITTI layout, with the reference mesh for evaluation; with
-// --route-km, a long drive through a procedural city instead.
+// --route-km, a long drive through a procedural city instead; with --pose-noise-m/-deg, the poses
+// written with noise and the true ones beside them (for pose refinement).
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "cli_common.hpp"
 #include "command_registry.hpp"
+#include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/io/kitti.hpp"
 #include "shine/sim/lidar_simulator.hpp"
 #include "shine/sim/object_simulation.hpp"
+#include "shine/sim/pose_noise.hpp"
 #include "shine/sim/route_simulation.hpp"
 
 namespace shine::cli {
@@ -29,6 +38,7 @@ struct SimulateOptions {
     std::string scene = "street";      ///< street | object
     bool max_range_given = false;      ///< --max-range-m was given
     bool max_edge_given = false;       ///< --max-edge-m was given
+    sim::PoseNoiseConfig pose_noise;   ///< --pose-noise-m/-deg; its seed is --seed
 };
 
 /// `--scene object`: the turntable scan (object_simulation.hpp) with this run's seed, noise and
@@ -115,7 +125,103 @@ int run_route(const SimulateOptions& options, const sim::SimulationConfig& stree
     return 0;
 }
 
-int run_simulate(const SimulateOptions& options) {
+/// The pose files of a simulated sequence: the poses it writes, and their true twin when the
+/// poses carry noise.
+constexpr const char* kPosesFile = "poses.txt";
+constexpr const char* kTruePosesFile = "poses_true.txt";
+
+/// The bytes of a file the simulation wrote; IoError naming it if it cannot be read.
+std::string read_file(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError("cannot read " + path.string() + " that the simulation just wrote");
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+}
+
+/// A number for simulation.json with 10 significant digits (as the simulator writes them).
+std::string json_number(double value) {
+    char buffer[64];
+    std::snprintf(buffer, sizeof(buffer), "%.10g", value);
+    return buffer;
+}
+
+/// Rejects a negative or non-finite --pose-noise-m / --pose-noise-deg before anything is simulated.
+void check_pose_noise_flag(double value, const char* flag, const char* what) {
+    if (!(std::isfinite(value) && value >= 0.0)) {
+        throw ConfigError(std::string(flag) + " = " + format_number(value) +
+                          " must be a finite number >= 0: the standard deviation of each axis of "
+                          "the noise added to the written poses' " +
+                          what + " (0, the default, for none)");
+    }
+}
+
+/// --pose-noise-m/-deg: the scans are measured from the true poses as always; afterwards the true
+/// poses.txt is kept as poses_true.txt (byte for byte) and poses.txt is rewritten with every pose
+/// perturbed (sim/pose_noise.hpp); simulation.json gains "pose_noise" and README.txt a line.
+/// Without noise nothing is rewritten, and a poses_true.txt left by an earlier noisy run in the
+/// same directory is removed, so that it cannot be taken for the truth of these poses.
+void write_pose_noise(const std::filesystem::path& out_dir, const sim::PoseNoiseConfig& noise) {
+    namespace fs = std::filesystem;
+    const fs::path poses_path = out_dir / kPosesFile;
+    const fs::path true_path = out_dir / kTruePosesFile;
+    if (!sim::has_pose_noise(noise)) {
+        std::error_code ec;
+        if (!fs::remove(true_path, ec) && ec) {
+            throw IoError("cannot remove " + true_path.string() + " left by an earlier run: " +
+                          ec.message() + "; delete it or choose another output directory");
+        }
+        return;
+    }
+    const std::string true_text = read_file(poses_path);
+    const std::vector<Eigen::Isometry3d> truth = parse_kitti_poses(true_text, poses_path);
+    write_stream_atomically(true_path, [&](std::ostream& out) { out << true_text; });
+    write_kitti_poses(poses_path, sim::add_pose_noise(truth, noise));
+
+    // simulation.json ends with the root object's closing brace: the record goes before it.
+    const fs::path json_path = out_dir / "simulation.json";
+    std::string json = read_file(json_path);
+    const std::size_t root_end = json.find_last_of('}');
+    const std::size_t last_value =
+        root_end == std::string::npos ? root_end : json.find_last_not_of(" \n", root_end - 1);
+    if (last_value == std::string::npos) {
+        throw IoError(json_path.string() + " does not end with a JSON object");
+    }
+    json =
+        json.substr(0, last_value + 1) +
+        ",\n  \"pose_noise\": {\"translation_sigma_m\": " + json_number(noise.translation_sigma_m) +
+        ", \"rotation_sigma_deg\": " + json_number(noise.rotation_sigma_deg) +
+        ", \"seed\": " + std::to_string(noise.seed) +
+        ",\n                 \"model\": \"R = exp(dphi) R_true, t = t_true + dt; dt [m] and dphi "
+        "[rad] independent Gaussians per axis, per scan, every scan (the first too)\",\n"
+        "                 \"poses\": \"poses.txt, the true poses with this noise\", "
+        "\"true_poses\": \"poses_true.txt, the poses the scans were measured from\"}\n}\n";
+    if (!nlohmann::json::accept(json)) {
+        throw IoError("the pose noise record made " + json_path.string() +
+                      " invalid JSON (an internal error: please report it)");
+    }
+    write_stream_atomically(json_path, [&](std::ostream& out) { out << json; });
+
+    const fs::path readme_path = out_dir / "README.txt";
+    const std::string readme = read_file(readme_path);
+    write_stream_atomically(readme_path, [&](std::ostream& out) {
+        out << readme
+            << "poses_true.txt       the true T_world_sensor the scans were measured from; "
+               "poses.txt holds\n"
+            << "                     them with noise: Gaussians of " << noise.translation_sigma_m
+            << " m and " << noise.rotation_sigma_deg << " deg per axis, each\n"
+            << "                     scan its own (seed " << noise.seed
+            << ", simulation.json \"pose_noise\")\n";
+    });
+    std::printf(
+        "poses.txt: the true poses with noise of %s m and %s deg per axis (seed %llu); the true "
+        "poses in poses_true.txt\n",
+        format_number(noise.translation_sigma_m).c_str(),
+        format_number(noise.rotation_sigma_deg).c_str(),
+        static_cast<unsigned long long>(noise.seed));
+}
+
+int simulate_scans(const SimulateOptions& options) {
     const auto& c = options.config;
     if (!options.route_requested && c.num_frames < 1) {
         throw ConfigError("--frames = " + std::to_string(c.num_frames) + " must be >= 1");
@@ -170,6 +276,17 @@ int run_simulate(const SimulateOptions& options) {
         summary.total_points, summary.min_points_per_scan, summary.max_points_per_scan,
         summary.num_triangles, summary.num_observed_triangles, summary.seconds);
     return 0;
+}
+
+int run_simulate(const SimulateOptions& options) {
+    check_pose_noise_flag(options.pose_noise.translation_sigma_m, "--pose-noise-m", "positions, m");
+    check_pose_noise_flag(options.pose_noise.rotation_sigma_deg, "--pose-noise-deg",
+                          "rotations, deg");
+    const int exit_code = simulate_scans(options);
+    sim::PoseNoiseConfig noise = options.pose_noise;
+    noise.seed = options.config.seed;
+    write_pose_noise(options.out_dir, noise);
+    return exit_code;
 }
 
 const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
@@ -240,6 +357,16 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
                   "at its own time; the scans, whose points carry that time, are written as "
                   "scans/NNNNNN.ply (float x y z t, t in s after the scan's pose) instead of "
                   "velodyne/*.bin (docs/odometry.md)");
+    cmd->add_option("--pose-noise-m", options->pose_noise.translation_sigma_m,
+                    "write poses.txt with noise for pose refinement: each scan's position moved "
+                    "by a Gaussian of this standard deviation per axis, m; the scans are measured "
+                    "from the true poses, written to poses_true.txt (docs/odometry.md)")
+        ->capture_default_str();
+    cmd->add_option("--pose-noise-deg", options->pose_noise.rotation_sigma_deg,
+                    "the same for the rotations: each scan turned by exp of a rotation vector "
+                    "whose axes are Gaussians of this standard deviation, deg (world axes, about "
+                    "the sensor's position)")
+        ->capture_default_str();
     cmd->add_option("--threads", options->threads, "worker threads (0 = all cores)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
