@@ -10,6 +10,7 @@ namespace shine {
 
 std::string PointTimeFormat::describe() const {
     if (field.empty()) return "no per-point time";
+    if (field == "azimuth") return "from the azimuth, " + type;  // sweep_times.hpp
     std::string text = "field '" + field + "'";
     if (!type.empty()) text += " (" + type + ")";
     text += nanoseconds ? ": nanoseconds" : ": seconds";

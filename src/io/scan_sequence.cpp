@@ -314,6 +314,23 @@ ScanSequence ScanSequence::open(const fs::path& dir, const ScanSequenceOptions& 
 }
 
 Scan ScanSequence::load(std::size_t i) const {
+    Scan scan = load_as_stored(i);
+    if (sweep_times_ && scan.point_time_s.empty() && !scan.points_sensor.empty()) {
+        scan.point_time_s = sweep_point_times_s(scan.points_sensor, *sweep_times_);
+        scan.point_time_format = PointTimeFormat{};
+        scan.point_time_format.field = "azimuth";
+        scan.point_time_format.type = sweep_times_->describe();
+    }
+    return scan;
+}
+
+ScanSequence ScanSequence::with_sweep_times(const SweepTimeModel& model) const {
+    ScanSequence result = *this;
+    result.sweep_times_ = model;
+    return result;
+}
+
+Scan ScanSequence::load_as_stored(std::size_t i) const {
     using namespace scan_sequence_internal;
     Scan scan;
     scan.source = scan_paths_.at(i);
@@ -366,6 +383,7 @@ ScanSequence ScanSequence::subset(const std::vector<std::size_t>& indices) const
     ScanSequence part;
     part.dir_ = dir_;
     part.has_poses_ = has_poses_;
+    part.sweep_times_ = sweep_times_;
     part.recording_ = recording_;  // shared: the parts read through one reader, under its lock
     for (const std::size_t i : indices) {
         if (i >= scan_paths_.size()) {

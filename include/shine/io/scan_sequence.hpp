@@ -30,10 +30,12 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "shine/io/point_times.hpp"
+#include "shine/io/sweep_times.hpp"
 
 namespace shine {
 
@@ -106,14 +108,23 @@ class ScanSequence {
     }
     /// Whether the scans come from a recording (bag / MCAP / SQLite) rather than files.
     bool from_recording() const { return recording_ != nullptr; }
-    /// Reads scan i from disk (points as stored; filtering is preprocess_scan's job).
+    /// Reads scan i from disk (points as stored; filtering is preprocess_scan's job). A scan
+    /// without per-point times gets them from its azimuths when with_sweep_times() gave a model.
     Scan load(std::size_t i) const;
+    /// The same scans, those without a time field timed by `model` (sweep_times.hpp) on load.
+    ScanSequence with_sweep_times(const SweepTimeModel& model) const;
+    /// Whether load() times scans without a time field from their azimuths.
+    bool has_sweep_times() const { return sweep_times_.has_value(); }
+    /// The model of with_sweep_times() (has_sweep_times() must be true).
+    const SweepTimeModel& sweep_times() const { return *sweep_times_; }
 
     /// The scans `indices` of this sequence, in that order: held-out evaluation maps with some
     /// scans and scores the map on the others. Throws ConfigError for an index out of range.
     ScanSequence subset(const std::vector<std::size_t>& indices) const;
 
   private:
+    /// load() without the sweep times.
+    Scan load_as_stored(std::size_t i) const;
     struct RecordingState;  ///< the open recording, its selected messages and a lock
     static ScanSequence open_recording(const std::filesystem::path& path,
                                        const ScanSequenceOptions& options);
@@ -128,6 +139,7 @@ class ScanSequence {
     /// Recordings only, after subset(): scan i is the recording's selected message
     /// recording_index_[i] (empty: message i).
     std::vector<std::size_t> recording_index_;
+    std::optional<SweepTimeModel> sweep_times_;  ///< see with_sweep_times()
 };
 
 }  // namespace shine
