@@ -9,6 +9,8 @@
 #include "shine/core/error.hpp"
 #include "shine/eval/heldout_ranges.hpp"
 #include "shine/io/ply.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
+#include "shine/mapper/sweep_test.hpp"
 #include "shine/sim/lidar_simulator.hpp"
 
 namespace shine::cli {
@@ -104,16 +106,24 @@ HoldoutSplit split_holdout(const ScanSequence& selected, int every) {
 
 void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& selected,
                    const HoldoutSplit& split, int every, const PreprocessConfig& preprocess,
-                   nlohmann::json& json, const std::string& key) {
+                   nlohmann::json& json, const std::string& key, const DeskewConfig* deskew) {
     if (split.heldout.empty()) return;
     const auto start = std::chrono::steady_clock::now();
     HeldoutConfig config;
     config.min_range_m = preprocess.min_range_m;
     config.max_range_m = preprocess.max_range_m;
+    DeskewStats deskew_stats;
+    ScanPreparation prepare;
+    if (deskew) {
+        prepare = [&](std::size_t frame, Scan& scan) {
+            deskew_with_sequence_poses(scan, selected, frame, *deskew, deskew_stats);
+        };
+    }
     const HeldoutReport report =
-        evaluate_heldout(read_ply_mesh(mesh_path), selected, split.heldout, config);
+        evaluate_heldout(read_ply_mesh(mesh_path), selected, split.heldout, config, prepare);
     json[key] = nlohmann::json::parse(heldout_to_json(report));
     json[key]["every"] = every;
+    json[key]["scans_deskewed"] = deskew_stats.scans_deskewed;
     json["seconds"][key] = seconds_since(start);
     std::printf("%s", format_heldout(report).c_str());
 }
@@ -144,6 +154,23 @@ std::vector<Eigen::Isometry3d> heldout_poses_local_to_estimate(
             mapped_world_sensor[a] * selected.pose(split.mapped[a]).inverse() * selected.pose(i);
     }
     return poses;
+}
+
+ScanSequence with_sweep_times_if_skewed(const ScanSequence& selected, const DeskewConfig& config,
+                                        bool quiet) {
+    SweepTestResult test;
+    ScanSequence result = sequence_with_sweep_times(selected, config, &test);
+    if (!quiet && test.tested) {
+        std::printf(
+            "sweep test (%.1f s): %s: %s\n", test.seconds, test.reason.c_str(),
+            result.has_sweep_times()
+                ? ("deskewing, times from the azimuth: " + result.sweep_times().describe()).c_str()
+                : "scans left as measured");
+    } else if (!quiet && result.has_sweep_times()) {
+        std::printf("scans without times timed from the azimuth: %s\n",
+                    result.sweep_times().describe().c_str());
+    }
+    return result;
 }
 
 }  // namespace shine::cli

@@ -13,6 +13,7 @@
 
 #include "shine/io/preprocess.hpp"
 #include "shine/io/scan_sequence.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
 
 namespace shine::cli {
 
@@ -59,9 +60,18 @@ HoldoutSplit split_holdout(const ScanSequence& selected, int every);
 
 /// Scores `mesh_path` on the held-out scans of `selected` with the run's range limits, prints
 /// the table and stores it in json[key] (and its seconds in json["seconds"][key]).
+/// With `deskew`, each held-out scan is deskewed first with the poses of `selected` around it
+/// (deskew_with_sequence_poses: the poses only, never the scan's own points), as mapping deskews
+/// the mapped scans.
 void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& selected,
                    const HoldoutSplit& split, int every, const PreprocessConfig& preprocess,
-                   nlohmann::json& json, const std::string& key = "heldout");
+                   nlohmann::json& json, const std::string& key = "heldout",
+                   const DeskewConfig* deskew = nullptr);
+
+/// `selected` timed from the azimuth where config says so (sequence_with_sweep_times: by the
+/// sweep test under deskew.azimuth_times auto); prints the verdict unless `quiet`.
+ScanSequence with_sweep_times_if_skewed(const ScanSequence& selected, const DeskewConfig& config,
+                                        bool quiet);
 
 /// Poses for every scan of a run that estimated the poses of its mapped scans
 /// (`mapped_world_sensor`, one per split.mapped) and holds some out: a mapped scan keeps its

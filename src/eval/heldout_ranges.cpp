@@ -117,8 +117,8 @@ RangeErrorStats score_scan_ranges(const RayCaster& surface, const Eigen::Vector3
 }
 
 HeldoutReport evaluate_heldout(const TriangleMesh& mesh, const ScanSequence& sequence,
-                               const std::vector<std::size_t>& frames,
-                               const HeldoutConfig& config) {
+                               const std::vector<std::size_t>& frames, const HeldoutConfig& config,
+                               const ScanPreparation& prepare) {
     check_config(config);
     if (frames.empty()) throw ConfigError("no held-out frames to score");
     for (const std::size_t f : frames) {
@@ -136,7 +136,8 @@ HeldoutReport evaluate_heldout(const TriangleMesh& mesh, const ScanSequence& seq
     report.config = config;
     std::vector<float> all_errors;
     for (const std::size_t f : frames) {
-        const Scan scan = sequence.load(f);
+        Scan scan = sequence.load(f);
+        if (prepare) prepare(f, scan);
         HeldoutScan result;
         result.frame = f;
         result.source = scan.source;

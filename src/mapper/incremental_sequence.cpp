@@ -184,7 +184,8 @@ IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
         result.odometry = std::make_unique<ScanOdometry>(config.odometry);
     }
     const bool checkpoints = control && !control->checkpoint_path.empty();
-    const bool deskew = deskew_active(config.deskew, config.odometry.estimate_poses);
+    const bool deskew =
+        deskew_active(config.deskew, config.odometry.estimate_poses, sequence.has_sweep_times());
     result.deskew.active = deskew;
     std::size_t first_frame = 0;
     if (checkpoints && control->resume) {

@@ -23,8 +23,9 @@ const char* to_string(DeskewMode mode) {
     return "?";
 }
 
-bool deskew_active(const DeskewConfig& config, bool estimate_poses) {
-    return config.mode == DeskewMode::kOn || (config.mode == DeskewMode::kAuto && estimate_poses);
+bool deskew_active(const DeskewConfig& config, bool estimate_poses, bool sweep_times) {
+    return config.mode == DeskewMode::kOn ||
+           (config.mode == DeskewMode::kAuto && (estimate_poses || sweep_times));
 }
 
 void require_point_times(const Scan& scan) {

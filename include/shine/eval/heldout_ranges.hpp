@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -73,12 +74,17 @@ RangeErrorStats score_scan_ranges(const RayCaster& surface, const Eigen::Vector3
                                   const HeldoutConfig& config,
                                   std::vector<float>* abs_errors_m = nullptr);
 
-/// Scores the scans `frames` of `sequence` against `mesh`. Throws ConfigError for a frame
-/// outside the sequence, an empty frame list or a mesh without triangles (naming it), and the
-/// readers' errors for a broken scan.
+/// What is done to a held-out scan after loading and before scoring (deskewing it with the
+/// poses around it); `frame` is its index in the sequence.
+using ScanPreparation = std::function<void(std::size_t frame, Scan& scan)>;
+
+/// Scores the scans `frames` of `sequence` against `mesh`, each passed through `prepare` first
+/// when given. Throws ConfigError for a frame outside the sequence, an empty frame list or a mesh
+/// without triangles (naming it), and the readers' errors for a broken scan.
 HeldoutReport evaluate_heldout(const TriangleMesh& mesh, const ScanSequence& sequence,
                                const std::vector<std::size_t>& frames,
-                               const HeldoutConfig& config = {});
+                               const HeldoutConfig& config = {},
+                               const ScanPreparation& prepare = {});
 
 /// The frames `shine map --holdout-every N` holds out of a sequence of `num_scans`: every N-th,
 /// starting with the N-th (index N-1), so the first scan is always mapped. N >= 2.

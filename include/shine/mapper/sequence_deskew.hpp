@@ -18,8 +18,18 @@
 // the number of frames between them (frame_step and held-out scans counted).
 //
 // Modes: `on` (--deskew) deskews every scan and stops at the first scan without times, naming
-// it; `auto` (the default) deskews with estimated poses when the scans carry times (with given
-// poses it leaves the scans as measured, as before deskewing existed); `off` never deskews.
+// it; `auto` (the default) deskews with estimated poses when the scans carry times, and with any
+// poses when the scans' times come from their azimuths (scans without a time field of a sequence
+// the sweep test judged skewed: io/sweep_times.hpp, mapper/sweep_test.hpp); with given poses
+// and times from the files it leaves the scans as measured, as before deskewing existed; `off`
+// never deskews.
+//
+// Times from the azimuth (deskew.azimuth_times): `off` (the default) leaves scans without time
+// fields as they are; `auto` lets the sweep test decide whether such a sequence is skewed and
+// which way its beams turn; `on` times them with deskew.sweep_direction / sweep_start_deg /
+// pose_azimuth_deg as configured. Off by default because it did not win where it was measured:
+// on the real KITTI-360 drive, deskewed by the azimuth at given poses, 0.7-0.8 points fewer
+// held-out rays fall within 10 cm (docs/field.md).
 #pragma once
 
 #include <Eigen/Geometry>
@@ -29,6 +39,7 @@
 
 #include "shine/io/point_times.hpp"
 #include "shine/io/scan_sequence.hpp"
+#include "shine/io/sweep_times.hpp"
 
 namespace shine {
 
@@ -41,8 +52,15 @@ const char* to_string(DeskewMode mode);
 /// Settings of deskewing (YAML section `deskew:`).
 struct DeskewConfig {
     DeskewMode mode = DeskewMode::kAuto;
-    /// Seconds between consecutive scans of a sequence without stamps (files): 0.1 s, 10 Hz.
+    /// Seconds between consecutive scans of a sequence without stamps (files): 0.1 s, 10 Hz;
+    /// also the sweep period of times from the azimuth.
     double scan_period_s = 0.1;
+    /// Scans without a time field timed from their azimuths (file comment): off (the default),
+    /// auto or on.
+    DeskewMode azimuth_times = DeskewMode::kOff;
+    /// The sweep of azimuth_times on (its period is scan_period_s); with auto, the sweep test
+    /// keeps the start and pose azimuths and chooses the direction.
+    SweepTimeModel sweep;
 };
 
 /// What deskewing did in one run (stats.json "deskew").
@@ -54,8 +72,9 @@ struct DeskewStats {
     double max_shift_m = 0.0;           ///< the largest distance a point was moved
 };
 
-/// Whether the run deskews: mode on, or auto with estimated poses.
-bool deskew_active(const DeskewConfig& config, bool estimate_poses);
+/// Whether the run deskews: mode on, or auto with estimated poses or with times from the azimuth
+/// (`sweep_times`: the sequence's ScanSequence::has_sweep_times()).
+bool deskew_active(const DeskewConfig& config, bool estimate_poses, bool sweep_times = false);
 
 /// Throws DataError naming scan.source (and the fix) if the scan carries no per-point times.
 void require_point_times(const Scan& scan);
