@@ -23,9 +23,11 @@
 #include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/scan_sequence.hpp"
+#include "shine/io/tum.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
+#include "shine/mapper/pose_refinement.hpp"
 #include "shine/model/map_file.hpp"
 #include "shine/odometry/trajectory_error.hpp"
 
@@ -52,6 +54,7 @@ struct MapOptions {
     bool print_config = false;
     bool deskew = false;     ///< --deskew: deskew.mode on
     bool no_deskew = false;  ///< --no-deskew: deskew.mode off
+    bool no_refine = false;  ///< --no-refine: refine.rounds 0
     bool half_features = false;
     std::string dynamic_filter;  ///< "on", "off" or empty (the configuration's)
     bool full_features = false;
@@ -378,6 +381,10 @@ MapperConfig config_from_options(const MapOptions& opt) {
     if (opt.max_map_mb >= 0.0) config.max_map_mb = opt.max_map_mb;
     if (opt.deskew) config.deskew.mode = DeskewMode::kOn;
     if (opt.no_deskew) config.deskew.mode = DeskewMode::kOff;
+    if (opt.no_refine) {
+        config.refine.rounds = 0;
+        config.mark_set("refine.rounds");
+    }
     if (!opt.dynamic_filter.empty()) {
         config.dynamic.enabled = opt.dynamic_filter == "on";
         config.mark_set("dynamic.enabled");
@@ -416,7 +423,8 @@ int run_map(const MapOptions& given_options) {
     if (!estimate_requested) seq_options.poses_path = opt.poses_path;
     seq_options.topic = opt.topic;
     seq_options.poses = PoseFileUse::kIfPresent;
-    const ScanSequence selected = ScanSequence::open(data, seq_options);
+    ScanSequence selected = ScanSequence::open(data, seq_options);
+    selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
     if (!selected.has_poses() && !incremental && !estimate_requested &&
         !config.odometry.estimate_poses) {
         const std::string estimate_hint =
@@ -465,7 +473,8 @@ int run_map(const MapOptions& given_options) {
     const HoldoutSplit split = split_holdout(selected, opt.holdout_every);
     const ScanSequence sequence = selected.subset(split.mapped);
     // Deskewing: the first scan says whether there are times, before anything is written.
-    const bool deskew = deskew_active(config.deskew, config.odometry.estimate_poses);
+    const bool deskew =
+        deskew_active(config.deskew, config.odometry.estimate_poses, sequence.has_sweep_times());
     if (deskew) {
         const Scan first = sequence.load(0);
         if (config.deskew.mode == DeskewMode::kOn) require_point_times(first);
@@ -532,6 +541,65 @@ int run_map(const MapOptions& given_options) {
         if (!out_existed && fs::is_empty(out, ec)) fs::remove(out, ec);
         throw;
     }
+    // Pose refinement (batch mode): the refined poses, and the held-out scans placed with the
+    // corrections of the mapped scans around them (never with their own points).
+    ScanSequence scored = selected;
+    nlohmann::json refine_json;
+    if (batch_map && !batch_map->refinement.empty()) {
+        std::vector<Eigen::Isometry3d> given(selected.size());
+        std::vector<double> frame_numbers(selected.size());
+        std::vector<bool> is_mapped(selected.size(), false);
+        for (std::size_t i = 0; i < selected.size(); ++i) {
+            given[i] = selected.pose(i);
+            frame_numbers[i] = static_cast<double>(selected.frame_number(i));
+        }
+        const std::vector<Eigen::Isometry3d> mapped_given =
+            odometry_run ? odometry_run->odometry->poses() : std::vector<Eigen::Isometry3d>{};
+        for (std::size_t m = 0; m < split.mapped.size(); ++m) {
+            is_mapped[split.mapped[m]] = true;
+            if (odometry_run) given[split.mapped[m]] = mapped_given[m];
+        }
+        if (odometry_run && !split.heldout.empty()) {
+            given = heldout_poses_local_to_estimate(selected, split, mapped_given);
+        }
+        const std::vector<Eigen::Isometry3d> refined = interpolate_corrections(
+            given, is_mapped, batch_map->refined_poses_world, frame_numbers);
+        write_kitti_poses(out / "poses_refined.txt", refined);
+        std::vector<StampedPose> stamped(refined.size());
+        for (std::size_t i = 0; i < refined.size(); ++i) {
+            stamped[i].timestamp_s = selected.from_recording()
+                                         ? selected.stamp_s(i)
+                                         : frame_numbers[i] * config.deskew.scan_period_s;
+            stamped[i].T_world_sensor = refined[i];
+        }
+        write_tum_poses(out / "poses_refined_tum.txt", stamped);
+        if (selected.has_poses() || odometry_run) scored = selected.with_poses(refined);
+        refine_json["rounds"] = nlohmann::json::array();
+        for (const PoseRefinementRound& r : batch_map->refinement) {
+            refine_json["rounds"].push_back({{"step", r.step},
+                                             {"accepted", r.accepted},
+                                             {"rejected", r.rejected},
+                                             {"median_translation_m", r.median_translation_m},
+                                             {"median_rotation_deg", r.median_rotation_deg},
+                                             {"max_translation_m", r.max_translation_m},
+                                             {"gauge_translation_m", r.gauge_translation_m},
+                                             {"seconds", r.seconds}});
+        }
+        double moved_m = 0.0;
+        for (std::size_t i = 0; i < refined.size(); ++i) {
+            moved_m = std::max(moved_m, (refined[i].translation() - given[i].translation()).norm());
+        }
+        refine_json["max_moved_m"] = moved_m;
+        refine_json["poses"] = (out / "poses_refined.txt").string();
+        refine_json["seconds"] = batch_map->refine_seconds;
+        const PoseRefinementRound& last = batch_map->refinement.back();
+        std::printf(
+            "poses refined with the map in %.1f s: %zu rounds, the last moved %zu scans by %.3f m "
+            "/ %.3f deg (median), at most %.3f m from the given poses in all; wrote %s\n",
+            batch_map->refine_seconds, batch_map->refinement.size(), last.accepted,
+            last.median_translation_m, last.median_rotation_deg, moved_m,
+            (out / "poses_refined.txt").c_str());
+    }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();
     const double save_seconds = products.save_seconds;
@@ -588,6 +656,9 @@ int run_map(const MapOptions& given_options) {
     if (odometry_map) add_odometry_stats(*odometry_map, json);
     const DeskewStats& deskew_stats = incremental ? incremental_map->deskew : batch_map->deskew;
     json["deskew"] = deskew_to_json(config.deskew, deskew_stats, config.odometry.estimate_poses);
+    json["deskew"]["azimuth_times"] =
+        sequence.has_sweep_times() ? sequence.sweep_times().describe() : std::string("none");
+    if (!refine_json.is_null()) json["refine"] = refine_json;
     if (odometry_run)
         json["deskew"]["odometry_scans_deskewed"] = odometry_run->deskew.scans_deskewed;
     if (deskew_stats.scans_deskewed > 0) {
@@ -645,7 +716,8 @@ int run_map(const MapOptions& given_options) {
         }
         json["seconds"]["eval"] = seconds_since(t0);
     }
-    score_heldout(out / "mesh.ply", selected, split, opt.holdout_every, config.preprocess, json);
+    score_heldout(out / "mesh.ply", scored, split, opt.holdout_every, config.preprocess, json,
+                  "heldout", deskew ? &config.deskew : nullptr);
     if (odometry && !split.heldout.empty()) {
         // The held-out scans at the data's poses also count the estimate's drift against them;
         // placed next to the mapped scan before each, they score the map alone.
@@ -655,7 +727,8 @@ int run_map(const MapOptions& given_options) {
         score_heldout(out / "mesh.ply",
                       selected.with_poses(
                           heldout_poses_local_to_estimate(selected, split, odometry->poses())),
-                      split, opt.holdout_every, config.preprocess, json, "heldout_local");
+                      split, opt.holdout_every, config.preprocess, json, "heldout_local",
+                      deskew ? &config.deskew : nullptr);
     }
     json["peak_rss_bytes"] = peak_rss_bytes();
     write_json(out / "stats.json", json);
@@ -711,11 +784,16 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
                   "Deskew every scan: move its points, measured over the sweep, to the instant "
                   "of the scan's pose at the constant velocity between consecutive poses (given "
                   "or estimated). Needs per-point times (PLY/PCD/PointCloud2 field t, time, "
-                  "timestamp or offset_time). Default (deskew.mode: auto): only with --poses "
-                  "estimate, when the scans carry times");
+                  "timestamp or offset_time), or times from the azimuth (scans without them: "
+                  "deskew.azimuth_times). Default (deskew.mode: auto): with --poses estimate when "
+                  "the scans carry times, and with any poses when the sweep test finds scans "
+                  "without times skewed");
     cmd->add_flag("--no-deskew", opt->no_deskew,
                   "Never deskew, not even with --poses estimate (deskew.mode: off)")
         ->excludes("--deskew");
+    cmd->add_flag("--no-refine", opt->no_refine,
+                  "Batch mode: keep the given poses instead of refining them with the map "
+                  "(refine.rounds: 0)");
     cmd->add_flag("--half-features", opt->half_features,
                   "Store the features in float16 (the default; map.feature_precision: float16)");
     cmd->add_flag("--full-features", opt->full_features,

@@ -50,6 +50,7 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
     const ScanInMap in_map =
         scan_in_map_frame(scan, config_, *sdf_, origin_set_, stats_.preprocess, true);
     const std::vector<Eigen::Vector3f>& points_map = in_map.points_map;
+    poses_map_.push_back(map_from_sensor(scan.T_world_sensor, sdf_->origin_world_m));
     const std::uint32_t index =
         rays_.add_scan(in_map.origin_map, points_map, in_map.voxel_begin, in_map.point_origins_map);
     const bool filter = config_.dynamic.enabled;
@@ -197,6 +198,18 @@ void BatchMapper::finish_scans() {
 
 bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progress,
                         const std::function<bool()>& stop) {
+    return run_steps(planned_iterations(), false, on_progress, stop);
+}
+
+std::vector<Eigen::Isometry3d> BatchMapper::refine_poses(
+    const std::function<void(std::size_t, double)>& on_progress) {
+    if (refinement().rounds > 0) run_steps(refinement_steps(), true, on_progress, {});
+    return poses_world();
+}
+
+bool BatchMapper::run_steps(int until, bool refining,
+                            const std::function<void(std::size_t, double)>& on_progress,
+                            const std::function<bool()>& stop) {
     finish_scans();
     if (rays_.num_rays() == 0) {
         throw DataError("no points left to map after preprocessing (check the range limits)");
@@ -217,9 +230,26 @@ bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
     const float lr0 = schedule.learning_rate;
     const float dlr0 = config_.trainer.decoder_adam.learning_rate;
     const int iterations = schedule.iterations;
+    const PoseRefinementConfig refine = refinement();
+    // Pose refinement's rounds (pose_refinement.hpp) between the steps of refine_poses(): every
+    // scan registered to the map as it stands and its rays moved, then training goes on.
+    const auto run_rounds = [&](int step) {
+        while (refining && static_cast<int>(rounds_.size()) < refine.rounds &&
+               refine.round_step(static_cast<int>(rounds_.size()), iterations) <= step) {
+            PoseRefinementRound round;
+            std::vector<Eigen::Isometry3d> refined = refine_scan_poses(
+                *sdf_, rays_, poses_map_, refine, static_cast<int>(rounds_.size()), &round);
+            move_scans(rays_, poses_map_, refined);
+            poses_map_ = std::move(refined);
+            round.step = step;
+            rounds_.push_back(round);
+            stats_.refine_seconds += round.seconds;
+        }
+    };
     bool stopped = false;
-    while (iterations_done_ < iterations) {
+    while (iterations_done_ < until) {
         const int it = iterations_done_;
+        run_rounds(it);
         // Cosine decay from lr to final_learning_rate_ratio * lr: large steps place the surface,
         // small ones refine it.
         const double ratio = cosine_decay_ratio(it, iterations, config_.final_learning_rate_ratio);
@@ -232,13 +262,13 @@ bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
         stats_.final_eikonal = last.eikonal;
         ++iterations_done_;
         ++stats_.iterations;
-        if (on_progress && (it % 50 == 0 || it + 1 == iterations))
-            on_progress(it + 1, bce_average_);
-        if (stop && iterations_done_ < iterations && stop()) {
+        if (on_progress && (it % 50 == 0 || it + 1 == until)) on_progress(it + 1, bce_average_);
+        if (stop && iterations_done_ < until && stop()) {
             stopped = true;
             break;
         }
     }
+    if (refining && !stopped) run_rounds(until);
     stats_.train_seconds += seconds_since(start);
     stats_.sample_seconds += trainer.seconds().sample;
     return !stopped;
@@ -250,6 +280,15 @@ void BatchMapper::save_state(BinaryWriter& out) const {
     out.value(stats_);
     out.value<std::int32_t>(iterations_done_);
     out.value(bce_average_);
+    // Pose refinement: the rounds run and the scans' current poses (the rays are moved again on
+    // load, and the map reallocated if the last round ran), before the map they shaped.
+    out.value<std::uint64_t>(rounds_.size());
+    for (const PoseRefinementRound& round : rounds_) out.value(round);
+    for (const Eigen::Isometry3d& T : poses_map_) {
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 4; ++c) out.value<double>(T.matrix()(r, c));
+        }
+    }
     save_sdf_parameters(out, *sdf_);
     out.value<std::uint8_t>(trainer_ ? 1 : 0);
     if (trainer_) trainer_->save_state(out);
@@ -272,6 +311,19 @@ void BatchMapper::load_state(BinaryReader& in) {
                                        std::to_string(planned_iterations()));
     }
     const auto bce_average = in.value<double>("running BCE");
+    const auto num_rounds = in.value<std::uint64_t>("pose refinement rounds");
+    if (num_rounds > 1000) in.fail("pose refinement rounds", std::to_string(num_rounds));
+    std::vector<PoseRefinementRound> rounds(num_rounds);
+    for (PoseRefinementRound& round : rounds) round = in.value<PoseRefinementRound>("round");
+    std::vector<Eigen::Isometry3d> poses(poses_map_.size(), Eigen::Isometry3d::Identity());
+    for (Eigen::Isometry3d& T : poses) {
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 4; ++c) T.matrix()(r, c) = in.value<double>("scan pose");
+        }
+    }
+    move_scans(rays_, poses_map_, poses);
+    poses_map_ = std::move(poses);
+    rounds_ = std::move(rounds);
     load_sdf_parameters(in, *sdf_);
     if (in.value<std::uint8_t>("trainer flag")) {
         trainer_ = std::make_unique<Trainer>(*sdf_, config_.batch_trainer(), config_.sampling);
@@ -289,6 +341,23 @@ void BatchMapper::load_state(BinaryReader& in) {
     normals_done_ = false;  // the normals are not stored: train() estimates them again
     iterations_done_ = iterations_done;
     bce_average_ = bce_average;
+}
+
+PoseRefinementConfig BatchMapper::refinement() const {
+    return config_.refine.at_leaf(config_.octree.leaf_size_m, config_.preprocess.min_range_m,
+                                  config_.preprocess.max_range_m);
+}
+
+int BatchMapper::refinement_steps() const {
+    const PoseRefinementConfig refine = refinement();
+    if (refine.rounds <= 0) return 0;
+    return refine.round_step(refine.rounds - 1, planned_iterations());
+}
+
+std::vector<Eigen::Isometry3d> BatchMapper::poses_world() const {
+    std::vector<Eigen::Isometry3d> poses = poses_map_;
+    for (Eigen::Isometry3d& T : poses) T.translation() += sdf_->origin_world_m;
+    return poses;
 }
 
 int BatchMapper::planned_iterations() const {

@@ -80,15 +80,70 @@ void write_batch_checkpoint(const RunControl& control, const BatchMapper& mapper
                      });
 }
 
+/// Pose refinement's first phase (pose_refinement.hpp): a map of every scan at the given poses,
+/// trained up to the last round of refinement, the rounds on the way. The dynamic-point filter
+/// is off here: at poses off by centimetres other scans see through true surfaces, and points
+/// it drops are lost to the map made at the refined poses.
+std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
+                                                     const ScanSequence& sequence,
+                                                     const std::string& progress_tag,
+                                                     std::vector<PoseRefinementRound>& rounds) {
+    MapperConfig first = config;
+    first.dynamic.enabled = false;
+    BatchMapper mapper(first);
+    const bool deskew =
+        deskew_active(config.deskew, config.odometry.estimate_poses, sequence.has_sweep_times());
+    DeskewStats ignored;
+    {
+        Progress progress(tagged("load", progress_tag), sequence.size());
+        for (std::size_t i = 0; i < sequence.size(); ++i) {
+            Scan scan = sequence.load(i);
+            if (deskew) deskew_with_sequence_poses(scan, sequence, i, config.deskew, ignored);
+            mapper.add_scan(scan);
+            progress.update(i + 1, std::to_string(mapper.sdf().octree.num_corners()) + " corners");
+        }
+        mapper.finish_scans();
+        progress.finish(std::to_string(mapper.stats().rays) + " rays");
+    }
+    std::vector<Eigen::Isometry3d> poses_world;
+    {
+        Progress progress(tagged("refine", progress_tag),
+                          static_cast<std::size_t>(mapper.refinement_steps()));
+        poses_world = mapper.refine_poses([&](std::size_t done, double bce) {
+            char detail[64];
+            std::snprintf(detail, sizeof(detail), "bce %.4f", bce);
+            progress.update(done, detail);
+        });
+        const PoseRefinementRound& last = mapper.refinement_rounds().back();
+        char detail[128];
+        std::snprintf(detail, sizeof(detail), "%zu rounds, last: %zu scans moved, median %.1f mm",
+                      mapper.refinement_rounds().size(), last.accepted,
+                      1000.0 * last.median_translation_m);
+        progress.finish(detail);
+    }
+    rounds = mapper.refinement_rounds();
+    return poses_world;
+}
+
 }  // namespace
 
-SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequence,
+SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& given_sequence,
                          const fs::path& out_dir, const std::string& progress_tag,
                          const RunControl* control) {
     MapperConfig config = config_in;
     config.finalize();
     ensure_directory(out_dir);
     SequenceMap result;
+    // With pose refinement: the poses refined on a first map, then the map made at them.
+    ScanSequence sequence = given_sequence;
+    if (config.refine.rounds > 0 && sequence.size() >= 3) {
+        const auto t0 = std::chrono::steady_clock::now();
+        result.refined_poses_world =
+            refine_sequence_poses(config, sequence, progress_tag, result.refinement);
+        result.refine_seconds = seconds_since(t0);
+        sequence = sequence.with_poses(result.refined_poses_world);
+    }
+    config.refine.rounds = 0;
     result.mapper = std::make_unique<BatchMapper>(config);
     BatchMapper& mapper = *result.mapper;
     const bool checkpoints = control && !control->checkpoint_path.empty();
@@ -109,7 +164,8 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& sequ
     }
     {
         Progress progress(tagged("load", progress_tag), sequence.size());
-        const bool deskew = deskew_active(config.deskew, config.odometry.estimate_poses);
+        const bool deskew = deskew_active(config.deskew, config.odometry.estimate_poses,
+                                          sequence.has_sweep_times());
         result.deskew.active = deskew;
         for (std::size_t i = 0; i < sequence.size(); ++i) {
             const auto t0 = std::chrono::steady_clock::now();

@@ -123,6 +123,21 @@ void RaySet::erase_front(std::uint32_t num_scans) {
     for (std::size_t& b : scan_begin_) b -= first;
 }
 
+void RaySet::transform_scan(std::uint32_t scan, const Eigen::Isometry3f& T_new_old) {
+    if (scan >= origins_.size()) {
+        throw DataError("ray set: scan " + std::to_string(scan) + " to move, but it holds " +
+                        std::to_string(origins_.size()) + " scans");
+    }
+    const Eigen::Matrix3f R = T_new_old.linear();
+    const std::size_t begin = scan_begin_[scan], end = scan_begin_[scan + 1];
+    for (std::size_t r = begin; r < end; ++r) {
+        endpoints_[r] = T_new_old * endpoints_[r];
+        if (!ray_origins_.empty()) ray_origins_[r] = T_new_old * ray_origins_[r];
+        if (!normals_.empty()) normals_[r] = R * normals_[r];
+    }
+    origins_[scan] = T_new_old * origins_[scan];
+}
+
 void RaySet::set_normals(std::vector<Eigen::Vector3f> normals) {
     if (!normals.empty() && normals.size() != endpoints_.size()) {
         throw DataError("ray normals: got " + std::to_string(normals.size()) + " for " +

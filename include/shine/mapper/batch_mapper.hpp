@@ -18,6 +18,7 @@
 #include "shine/io/preprocess.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/pose_refinement.hpp"
 #include "shine/mapper/stage_profile.hpp"
 #include "shine/model/neural_sdf.hpp"
 #include "shine/sampling/free_space_votes.hpp"
@@ -49,6 +50,7 @@ struct MappingStats {
     double normals_seconds = 0.0;   ///< surface normals for the label correction
     double train_seconds = 0.0;
     double sample_seconds = 0.0;  ///< the part of train_seconds spent drawing samples
+    double refine_seconds = 0.0;  ///< the part of train_seconds spent refining poses
     std::size_t iterations = 0;
     double final_bce = 0.0;
     double final_eikonal = 0.0;
@@ -104,6 +106,22 @@ class BatchMapper {
     void save_state(BinaryWriter& out) const;
     void load_state(BinaryReader& in);
 
+    /// Each scan's pose T_world_sensor as trained: the given pose, or its refinement once a round
+    /// of pose refinement ran (config.refine, pose_refinement.hpp).
+    std::vector<Eigen::Isometry3d> poses_world() const;
+    /// Pose refinement's first phase: trains this map up to the step of the last round of
+    /// config.refine, running the rounds on the way, and returns the refined poses (world frame,
+    /// one per scan; the given ones when config.refine.rounds is 0). train() never refines: it
+    /// trains at the poses the scans have (map_sequence() makes the map at refined poses).
+    std::vector<Eigen::Isometry3d> refine_poses(
+        const std::function<void(std::size_t done, double bce)>& on_progress = {});
+    /// config.refine at this map's leaf and range limits.
+    PoseRefinementConfig refinement() const;
+    /// The steps of refine_poses(): the last round's step (0 without refinement).
+    int refinement_steps() const;
+    /// The rounds of pose refinement run so far.
+    const std::vector<PoseRefinementRound>& refinement_rounds() const { return rounds_; }
+
     const NeuralSdf& sdf() const { return *sdf_; }
     NeuralSdf& sdf() { return *sdf_; }
     const MappingStats& stats() const { return stats_; }
@@ -115,6 +133,11 @@ class BatchMapper {
     void finish_scans();
 
   private:
+    /// The steps of train() up to `until`; `refining` (refine_poses()): with the rounds of pose
+    /// refinement due on the way and at `until`.
+    bool run_steps(int until, bool refining,
+                   const std::function<void(std::size_t, double)>& on_progress,
+                   const std::function<bool()>& stop);
     /// A scan that still votes on the scans after it.
     struct Voter {
         std::uint32_t scan = 0;
@@ -127,6 +150,9 @@ class BatchMapper {
     RaySet rays_;
     MappingStats stats_;
     bool origin_set_ = false;
+    /// Each scan's current pose in the map frame (moved by pose refinement).
+    std::vector<Eigen::Isometry3d> poses_map_;
+    std::vector<PoseRefinementRound> rounds_;
     std::deque<Voter> voters_;  ///< the last max(dynamic.vote_frames, far_vote_frames) scans
     /// Per voxel group of rays (per ray when ungrouped), until the dynamic points are dropped:
     /// a group is voted on at its first point, the one thinning keeps, and kept or dropped whole.

@@ -45,6 +45,12 @@ struct SequenceMap {
     MapProducts products;
     StageProfile profile;  ///< per scan: load, preprocess, allocate; the rest once per run
     DeskewStats deskew;    ///< what deskewing did (config.deskew, sequence_deskew.hpp)
+    /// With pose refinement (config.refine.rounds > 0): each scan's refined pose (world frame),
+    /// the rounds' figures and the seconds of the first phase (load, train, rounds); empty / 0
+    /// without.
+    std::vector<Eigen::Isometry3d> refined_poses_world;
+    std::vector<PoseRefinementRound> refinement;
+    double refine_seconds = 0.0;
 };
 
 /// The bake and mesh stages of `products` in profile form.
@@ -66,10 +72,12 @@ MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
                                const std::filesystem::path& out_dir);
 
 /// Maps every scan of `sequence` in batch mode with `config` (finalized here) and writes the
-/// products into `out_dir` (created if missing). Scans with per-point times are deskewed with the
-/// sequence's poses when deskew_active(config.deskew, config.odometry.estimate_poses)
-/// (sequence_deskew.hpp). Progress lines are labelled "load" and "train",
-/// followed by `progress_tag` when it is not empty. Throws what the steps throw (IoError,
+/// products into `out_dir` (created if missing). With config.refine.rounds > 0 (the default) the
+/// scans' poses are first refined on a map of their own (pose_refinement.hpp: a first phase with
+/// the dynamic-point filter off) and the map is then made at the refined poses. Scans with
+/// per-point times are deskewed with the sequence's poses when deskew_active(config.deskew,
+/// config.odometry.estimate_poses) (sequence_deskew.hpp). Progress lines are labelled "load" and
+/// "train", followed by `progress_tag` when it is not empty. Throws what the steps throw (IoError,
 /// DataError naming the scan, ConfigError).
 ///
 /// With a `control` (checkpoint.hpp): after every scan and every optimisation step it polls

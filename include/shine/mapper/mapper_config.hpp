@@ -29,6 +29,7 @@
 #include "shine/map/feature_octree.hpp"
 #include "shine/mapper/incremental_config.hpp"
 #include "shine/mapper/odometry_config.hpp"
+#include "shine/mapper/pose_refinement.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
 #include "shine/mapper/trainer.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
@@ -80,6 +81,9 @@ struct MapperConfig {
     IncrementalConfig incremental;  ///< `shine map --mode incremental`
     OdometryConfig odometry;        ///< poses estimated while mapping (incremental mode)
     DeskewConfig deskew;            ///< scans with per-point times (`shine map --deskew`)
+    /// Batch mode: the scans' poses refined with the map between training steps
+    /// (pose_refinement.hpp); YAML section `refine`, `shine map --no-refine` turns it off.
+    PoseRefinementConfig refine;
     BakeConfig bake;
     MeshConfig mesh;
     /// Memory budget of the map (features + structure + decoder, MB = 10^6 bytes), checked after

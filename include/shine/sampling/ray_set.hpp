@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <vector>
 
@@ -33,6 +34,11 @@ class RaySet {
                                         const std::vector<Eigen::Vector3f>& endpoints_map,
                                         const std::vector<Eigen::Vector3f>& normals,
                                         const std::vector<Eigen::Vector3f>& ray_origins_map = {});
+    /// Moves scan `scan`'s rays rigidly by `T_new_old` (map frame): endpoints, the scan's origin
+    /// and its rays' own origins are mapped by it, normals rotated. Pose refinement
+    /// (mapper/pose_refinement.hpp) corrects a scan this way; nothing else changes (grouping,
+    /// order). Throws DataError for a scan index out of range.
+    void transform_scan(std::uint32_t scan, const Eigen::Isometry3f& T_new_old);
     /// Keeps the first `num_scans` scans (at most num_scans()) and drops the rest.
     void truncate(std::uint32_t num_scans);
     /// Drops the first `num_scans` scans (at most num_scans()); the later scans and their rays

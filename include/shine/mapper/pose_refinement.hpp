@@ -1,0 +1,102 @@
+// Poses refined with the map (batch mode): the given poses of real data are imperfect (an ICP
+// odometry drifts; a LiDAR-inertial one is off by centimetres), and a map trained at wrong poses
+// blurs every surface the scans disagree on. Alternating with training, each scan is registered
+// to the map of all scans (register_to_sdf on the NeuralSdf: the points' SDF values driven to
+// zero) and its rays are moved rigidly to the registered pose; training then goes on with the
+// moved rays, sharpening the map, which the next round registers against again.
+//
+// Why alternation and not a joint gradient on the poses: the registration is a Gauss-Newton
+// solve on thousands of points per scan, converged in a few iterations, where a pose updated by
+// Adam alongside the features would need a learning rate of its own per dataset; a round costs
+// about as much as a few training steps (docs/field.md has the measurements).
+//
+// Gauge: registering every scan to a map made from all of them leaves the frame free to creep.
+// After each round the new poses are aligned (SE(3), Umeyama over the scans' positions and axes)
+// to the poses the round started from: the corrections do not move the map as a whole, which is
+// the weighted prior towards the given poses that keeps the map in the data's frame (every scan
+// weighted equally).
+//
+// A registration that fails (degenerate, not converged) or asks for a correction beyond
+// max_correction_m / max_correction_deg keeps the scan where it was.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <vector>
+
+#include "shine/model/neural_sdf.hpp"
+#include "shine/sampling/ray_set.hpp"
+
+namespace shine {
+
+/// Settings of pose refinement (YAML section `refine`).
+struct PoseRefinementConfig {
+    /// Rounds of registration during batch training, evenly spread between first_fraction and
+    /// last_fraction of the steps; 0 turns refinement off.
+    int rounds = 4;
+    double first_fraction = 0.1;
+    double last_fraction = 0.6;
+    /// Registration points: at most one per voxel of this size (sensor frame). The lengths here
+    /// are the outdoor ones at 0.2 m leaves; for other leaves the mapper scales them with the
+    /// leaf (at_leaf()).
+    double voxel_size_m = 0.3;
+    double min_range_m = 1.5;   ///< closer points do not register
+    double max_range_m = 60.0;  ///< farther points do not register
+    /// Geman-McClure scale of the SDF residuals, coarse to fine: the first round's scale is
+    /// coarse_kernel_scale_m (poses off by decimetres pull on a blurred map), the last's
+    /// kernel_scale_m, the rounds between on a geometric scale.
+    double coarse_kernel_scale_m = 0.2;
+    double kernel_scale_m = 0.05;
+    int max_iterations = 15;          ///< Levenberg-Marquardt iterations per scan and round
+    double max_correction_m = 1.0;    ///< larger corrections are rejected
+    double max_correction_deg = 5.0;  ///< larger corrections are rejected
+
+    /// These settings for a map of `leaf_size_m` leaves whose scans keep ranges in [min_range_m,
+    /// max_range_m]: the voxel, kernel and largest correction scaled by leaf / 0.2 m.
+    PoseRefinementConfig at_leaf(double leaf_size_m, double min_range_m, double max_range_m) const;
+
+    /// The training step at which round r (0-based) runs, of `iterations` steps.
+    int round_step(int round, int iterations) const;
+    /// The kernel scale of round r (0-based).
+    double round_kernel_scale_m(int round) const;
+};
+
+/// What one round did.
+struct PoseRefinementRound {
+    int step = 0;                       ///< the training step before which it ran
+    std::size_t accepted = 0;           ///< scans moved
+    std::size_t rejected = 0;           ///< scans kept (failed or too large a correction)
+    double median_translation_m = 0.0;  ///< of the accepted corrections
+    double median_rotation_deg = 0.0;
+    double max_translation_m = 0.0;
+    double gauge_translation_m = 0.0;  ///< how far the gauge alignment moved the mean position
+    double seconds = 0.0;
+};
+
+/// Round `round_index`: every scan of `rays` registered to `sdf` from its pose `T_map_sensor[s]`
+/// (map frame: the world less sdf.origin_world_m), the registered poses gauge-aligned to the
+/// given ones (file comment). Returns the new poses, one per scan; `round` (optional) gets the
+/// figures. Throws DataError if the pose count differs from the scan count.
+std::vector<Eigen::Isometry3d> refine_scan_poses(const NeuralSdf& sdf, const RaySet& rays,
+                                                 const std::vector<Eigen::Isometry3d>& T_map_sensor,
+                                                 const PoseRefinementConfig& config,
+                                                 int round_index,
+                                                 PoseRefinementRound* round = nullptr);
+
+/// Moves every scan of `rays` from `T_map_sensor_old[s]` to `T_map_sensor_new[s]`.
+void move_scans(RaySet& rays, const std::vector<Eigen::Isometry3d>& T_map_sensor_old,
+                const std::vector<Eigen::Isometry3d>& T_map_sensor_new);
+
+/// Poses of held-out scans from the corrections of the mapped scans around them, never from their
+/// own points: with the body-frame correction D(s) = T_given(s)^-1 T_refined(s) of each mapped
+/// scan, a held-out scan h between mapped scans a < h < b gets T_given(h) D(h) with D(h)
+/// interpolated between D(a) and D(b) by frame number (translation linearly, rotation by slerp);
+/// one before the first or after the last mapped scan takes that scan's correction.
+/// `is_mapped[i]` says which of `given` are mapped; `refined_mapped` holds the refined poses of
+/// the mapped ones in order; `frame_number[i]` orders the scans in time. Returns a pose for every
+/// scan (the mapped ones refined). Throws DataError for mismatched counts or no mapped scan.
+std::vector<Eigen::Isometry3d> interpolate_corrections(
+    const std::vector<Eigen::Isometry3d>& given, const std::vector<bool>& is_mapped,
+    const std::vector<Eigen::Isometry3d>& refined_mapped, const std::vector<double>& frame_number);
+
+}  // namespace shine

@@ -1,0 +1,105 @@
+// Pose refinement's pieces that need no trained map (mapper/pose_refinement.hpp): scans moved
+// rigidly with their rays, the held-out rule (a held-out scan's pose takes only the corrections
+// of the mapped scans around it), and the schedule of the rounds.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "shine/core/error.hpp"
+#include "shine/mapper/pose_refinement.hpp"
+#include "shine/sampling/ray_set.hpp"
+
+namespace {
+
+constexpr double kExactM = 1e-9;  // double arithmetic on metre-sized poses
+constexpr float kFloatM = 1e-5f;  // float rays near the origin
+
+Eigen::Isometry3d pose(double x, double y, double yaw_deg) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()).matrix();
+    T.translation() = Eigen::Vector3d(x, y, 1.5);
+    return T;
+}
+
+}  // namespace
+
+TEST(PoseRefinement, MovingAScanMovesItsRaysOriginsAndNormalsOnly) {
+    shine::RaySet rays;
+    rays.add_scan_with_normals(Eigen::Vector3f(0, 0, 1), {{5, 0, 0}, {0, 5, 0}},
+                               {{-1, 0, 0}, {0, -1, 0}});
+    rays.add_scan_with_normals(Eigen::Vector3f(1, 0, 1), {{6, 0, 0}}, {{-1, 0, 0}});
+    const std::vector<Eigen::Isometry3d> old_poses = {pose(0, 0, 0), pose(1, 0, 0)};
+    std::vector<Eigen::Isometry3d> new_poses = old_poses;
+    new_poses[1] = pose(1, 0.5, 90);  // the second scan turned a quarter and moved left
+    shine::move_scans(rays, old_poses, new_poses);
+    // Scan 0 did not move.
+    EXPECT_NEAR((rays.endpoint(0) - Eigen::Vector3f(5, 0, 0)).norm(), 0.0f, kFloatM);
+    EXPECT_NEAR((rays.origin_of_scan(0) - Eigen::Vector3f(0, 0, 1)).norm(), 0.0f, kFloatM);
+    // Scan 1's point, 5 m ahead of its sensor, is now 5 m to the new pose's left... its forward.
+    EXPECT_NEAR((rays.endpoint(2) - Eigen::Vector3f(1, 5.5, 0)).norm(), 0.0f, kFloatM);
+    EXPECT_NEAR((rays.origin_of_scan(1) - Eigen::Vector3f(1, 0.5, 1)).norm(), 0.0f, kFloatM);
+    EXPECT_NEAR((rays.normal(2) - Eigen::Vector3f(0, -1, 0)).norm(), 0.0f, kFloatM);
+    EXPECT_THROW(shine::move_scans(rays, old_poses, {old_poses[0]}), shine::DataError);
+}
+
+TEST(PoseRefinement, HeldOutScansTakeOnlyTheirNeighboursCorrections) {
+    // Five scans along x; scan 2 held out. Corrections (body frame): scan 1 moves 0.1 m left,
+    // scan 3 0.3 m left and 2 deg of yaw; scans 0 and 4 stay.
+    std::vector<Eigen::Isometry3d> given;
+    for (int i = 0; i < 5; ++i) given.push_back(pose(2.0 * i, 0.0, 10.0 * i));
+    const std::vector<bool> is_mapped = {true, true, false, true, true};
+    const std::vector<double> frame = {0, 1, 2, 3, 4};
+    const Eigen::Isometry3d D1 = pose(0, 0.1, 0) * pose(0, 0, 0).inverse();
+    Eigen::Isometry3d D3 = Eigen::Isometry3d::Identity();
+    D3.linear() = Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).matrix();
+    D3.translation() = Eigen::Vector3d(0, 0.3, 0);
+    const std::vector<Eigen::Isometry3d> refined = {given[0], given[1] * D1, given[3] * D3,
+                                                    given[4]};
+    const std::vector<Eigen::Isometry3d> poses =
+        shine::interpolate_corrections(given, is_mapped, refined, frame);
+    ASSERT_EQ(poses.size(), 5u);
+    for (int i : {0, 1, 3, 4}) {
+        EXPECT_NEAR((poses[i].matrix() - refined[i < 2 ? i : i - 1].matrix()).norm(), 0.0, kExactM);
+    }
+    // Halfway: 0.2 m left and 1 deg of yaw in its own frame.
+    const Eigen::Isometry3d D2 = given[2].inverse() * poses[2];
+    EXPECT_NEAR((D2.translation() - Eigen::Vector3d(0, 0.2, 0)).norm(), 0.0, kExactM);
+    EXPECT_NEAR(Eigen::AngleAxisd(D2.linear()).angle() * 180.0 / M_PI, 1.0, 1e-9);
+    // The scans further away do not reach it: moving scans 0 and 4 changes nothing of scan 2.
+    std::vector<Eigen::Isometry3d> far_moved = refined;
+    far_moved[0] = given[0] * pose(3, 3, 30);
+    far_moved[3] = given[4] * pose(-3, 1, -20);
+    const std::vector<Eigen::Isometry3d> again =
+        shine::interpolate_corrections(given, is_mapped, far_moved, frame);
+    EXPECT_NEAR((again[2].matrix() - poses[2].matrix()).norm(), 0.0, kExactM);
+    // Before the first / after the last mapped scan: that scan's correction.
+    const std::vector<bool> ends = {false, true, true, true, false};
+    const std::vector<Eigen::Isometry3d> inner = {given[1] * D1, given[2], given[3] * D3};
+    const std::vector<Eigen::Isometry3d> at_ends =
+        shine::interpolate_corrections(given, ends, inner, frame);
+    EXPECT_NEAR(((given[0].inverse() * at_ends[0]).matrix() - D1.matrix()).norm(), 0.0, kExactM);
+    EXPECT_NEAR(((given[4].inverse() * at_ends[4]).matrix() - D3.matrix()).norm(), 0.0, kExactM);
+    // Mismatched counts are errors.
+    EXPECT_THROW(shine::interpolate_corrections(given, is_mapped, inner, frame), shine::DataError);
+    EXPECT_THROW(shine::interpolate_corrections(given, {true}, refined, frame), shine::DataError);
+}
+
+TEST(PoseRefinement, RoundsAreSpreadOverTheStepsCoarseToFine) {
+    shine::PoseRefinementConfig config;
+    config.rounds = 3;
+    config.first_fraction = 0.1;
+    config.last_fraction = 0.5;
+    EXPECT_EQ(config.round_step(0, 1000), 100);
+    EXPECT_EQ(config.round_step(1, 1000), 300);
+    EXPECT_EQ(config.round_step(2, 1000), 500);
+    EXPECT_DOUBLE_EQ(config.round_kernel_scale_m(0), config.coarse_kernel_scale_m);
+    EXPECT_NEAR(config.round_kernel_scale_m(2), config.kernel_scale_m, 1e-12);
+    EXPECT_NEAR(config.round_kernel_scale_m(1),
+                std::sqrt(config.coarse_kernel_scale_m * config.kernel_scale_m), 1e-12);
+    // Lengths follow the leaf: a 0.1 m map registers with half the voxel and kernel.
+    const shine::PoseRefinementConfig fine = config.at_leaf(0.1, 1.0, 40.0);
+    EXPECT_DOUBLE_EQ(fine.voxel_size_m, config.voxel_size_m / 2);
+    EXPECT_DOUBLE_EQ(fine.kernel_scale_m, config.kernel_scale_m / 2);
+    EXPECT_DOUBLE_EQ(fine.max_range_m, 40.0);
+}
