@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
 
 #include "shine/core/error.hpp"
 
@@ -26,11 +25,14 @@ Eigen::Vector3d axis_of(double roll, double pitch) {
 /// sin(elevation) with bins `bin` wide. Rings make tall, narrow peaks; a wrong axis smears them.
 double sharpness(const std::vector<Eigen::Vector3d>& units, const Eigen::Vector3d& axis,
                  double bin) {
-    std::unordered_map<long, int> counts;
-    counts.reserve(units.size());
-    for (const Eigen::Vector3d& u : units) ++counts[std::lround(std::floor(u.dot(axis) / bin))];
+    const long half_bins = static_cast<long>(std::ceil(1.0 / bin)) + 1;
+    std::vector<int> counts(std::size_t(2 * half_bins + 1), 0);
+    for (const Eigen::Vector3d& u : units) {
+        const long b = std::lround(std::floor(u.dot(axis) / bin));
+        ++counts[std::size_t(std::clamp(b, -half_bins, half_bins) + half_bins)];
+    }
     double sum = 0.0;
-    for (const auto& [key, n] : counts) sum += double(n) * n;
+    for (const int n : counts) sum += double(n) * n;
     return sum;
 }
 
@@ -49,6 +51,8 @@ double median(std::vector<double> v) {
 constexpr int kMaxColumns = 32768;
 /// More clusters than this are not sought (noise once the rings are taken).
 constexpr std::size_t kMaxClusters = 512;
+/// Share of azimuth sectors both halves of a split ring must see.
+constexpr double kMinSharedAzimuths = 0.8;
 
 /// The ring nearest to a point of elevation `elevation` (beam frame) whose distance from the spin
 /// axis is 1 / `inv_radius` (0: a direction, seen far away): ring k is seen there at
@@ -127,62 +131,64 @@ bool SphericalLidarModel::pixel_of_point(const Eigen::Vector3d& point_sensor, in
     return true;
 }
 
-SphericalLidarModel infer_spherical_lidar(const std::vector<Eigen::Vector3f>& points_sensor,
-                                          const SphericalLidarConfig& config) {
-    std::vector<Eigen::Vector3d> points, units;
-    for (const Eigen::Vector3f& p : points_sensor) {
-        const Eigen::Vector3d q = p.cast<double>();
-        const double r = q.norm();
-        if (q.allFinite() && r >= config.min_range_m && r > 0.0) {
-            points.push_back(q);
-            units.push_back(q / r);
-        }
-    }
-    if (units.size() < 16) {
-        throw DataError("cannot infer the LiDAR's beam layout: only " +
-                        std::to_string(units.size()) + " points are at least " +
-                        std::to_string(config.min_range_m) + " m away");
-    }
+namespace {
 
-    // 1. The spin axis, coarse to fine (search step and histogram bin shrink together).
+/// A point in a candidate beam frame: along the spin axis, distance from it, azimuth.
+struct Ray {
+    double z_m, radius_m, azimuth;
+};
+
+/// A ring found in a scan: its elevation from its beam height, and its median azimuth gap.
+struct Ring {
+    double elevation_rad, height_m, azimuth_step_rad;
+};
+
+/// The points about the spin axis `R_sensor_beams.col(2)`.
+std::vector<Ray> rays_about(const std::vector<Eigen::Vector3d>& points,
+                            const Eigen::Matrix3d& R_sensor_beams) {
+    std::vector<Ray> rays;
+    rays.reserve(points.size());
+    for (const Eigen::Vector3d& p : points) {
+        const Eigen::Vector3d d = R_sensor_beams.transpose() * p;
+        rays.push_back({d.z(), std::hypot(d.x(), d.y()), std::atan2(d.y(), d.x())});
+    }
+    return rays;
+}
+
+/// Step 1: the axis around which the points' elevations are sharpest, coarse to fine (search step
+/// and histogram bin shrink together).
+Eigen::Vector3d search_spin_axis(const std::vector<Eigen::Vector3d>& units,
+                                 const SphericalLidarConfig& config) {
+    if (!(config.max_tilt_deg > 0.0)) return Eigen::Vector3d::UnitZ();
     std::vector<Eigen::Vector3d> sample;
     const std::size_t stride = std::max<std::size_t>(1, units.size() / config.max_points);
     for (std::size_t i = 0; i < units.size(); i += stride) sample.push_back(units[i]);
     double roll = 0.0, pitch = 0.0;
-    if (config.max_tilt_deg > 0.0) {
-        double half_range = config.max_tilt_deg * kDegToRad;
-        double step = 1.0 * kDegToRad;
-        for (int stage = 0; stage < 3; ++stage) {
-            const int n = static_cast<int>(std::ceil(half_range / step));
-            const int side = 2 * n + 1;
-            const double bin = std::max(step, 0.01 * kDegToRad);
-            std::vector<double> scores(std::size_t(side) * side);
-            tbb::parallel_for(0, side * side, [&](int k) {
-                const double a = roll + (k / side - n) * step;
-                const double b = pitch + (k % side - n) * step;
-                scores[k] = sharpness(sample, axis_of(a, b), bin);
-            });
-            // First maximum in a fixed order: the result does not depend on the thread count.
-            const int best = int(std::max_element(scores.begin(), scores.end()) - scores.begin());
-            roll += (best / side - n) * step;
-            pitch += (best % side - n) * step;
-            half_range = 1.5 * step;
-            step /= 10.0;
-        }
+    double half_range = config.max_tilt_deg * kDegToRad;
+    double step = 1.0 * kDegToRad;
+    for (int stage = 0; stage < 3; ++stage) {
+        const int n = static_cast<int>(std::ceil(half_range / step));
+        const int side = 2 * n + 1;
+        const double bin = std::max(step, 0.01 * kDegToRad);
+        std::vector<double> scores(std::size_t(side) * side);
+        tbb::parallel_for(0, side * side, [&](int k) {
+            const double a = roll + (k / side - n) * step;
+            const double b = pitch + (k % side - n) * step;
+            scores[k] = sharpness(sample, axis_of(a, b), bin);
+        });
+        // First maximum in a fixed order: the result does not depend on the thread count.
+        const int best = int(std::max_element(scores.begin(), scores.end()) - scores.begin());
+        roll += (best / side - n) * step;
+        pitch += (best % side - n) * step;
+        half_range = 1.5 * step;
+        step /= 10.0;
     }
-    SphericalLidarModel model;
-    model.R_sensor_beams = frame_with_z(axis_of(roll, pitch));
+    return axis_of(roll, pitch);
+}
 
-    // 2. Rings, each found in focus: a histogram of elevations per candidate beam height.
-    struct Ray {
-        double z_m, radius_m, azimuth;
-    };
-    std::vector<Ray> rays;
-    rays.reserve(points.size());
-    for (const Eigen::Vector3d& p : points) {
-        const Eigen::Vector3d d = model.R_sensor_beams.transpose() * p;
-        rays.push_back({d.z(), std::hypot(d.x(), d.y()), std::atan2(d.y(), d.x())});
-    }
+/// Step 2 and 3: the rings about the rays' axis, each found in focus of its own beam height,
+/// highest first.
+std::vector<Ring> find_rings(const std::vector<Ray>& rays, const SphericalLidarConfig& config) {
     const int half_rows =
         config.max_beam_height_m > 0.0 && config.beam_height_step_m > 0.0
             ? static_cast<int>(config.max_beam_height_m / config.beam_height_step_m + 1e-9)
@@ -263,9 +269,65 @@ SphericalLidarModel infer_spherical_lidar(const std::vector<Eigen::Vector3f>& po
     std::vector<double> sizes;
     for (const Cluster& cluster : clusters) sizes.push_back(double(cluster.members.size()));
     const double min_size = sizes.empty() ? 0.0 : config.min_ring_share * median(sizes);
-    struct Ring {
-        double elevation_rad, height_m, azimuth_step_rad;
-    };
+    // Two rings that mostly hit the ground at one range are sharp from many beam heights, and the
+    // points between them (walls, cars) can bridge the gap from the height chosen. A cluster is
+    // split at its deepest dip when the dip holds under a quarter of the smaller side's peak and
+    // both sides are ring-sized; a thick ring has no such dip.
+    for (std::size_t k = 0; k < clusters.size(); ++k) {
+        Cluster& cluster = clusters[k];
+        const int row =
+            static_cast<int>(std::lround(cluster.height_m / config.beam_height_step_m)) + half_rows;
+        std::vector<int> hist(bins, 0);
+        for (const std::size_t i : cluster.members) ++hist[bin_of(rays[i], row)];
+        std::vector<int> smooth(bins, 0);
+        for (int b = 1; b + 1 < bins; ++b) smooth[b] = hist[b - 1] + hist[b] + hist[b + 1];
+        std::vector<int> below(bins + 1, 0);  // members in bins < b
+        for (int b = 0; b < bins; ++b) below[b + 1] = below[b] + hist[b];
+        std::vector<int> max_left(bins, 0), max_right(bins, 0);
+        for (int b = 1; b < bins; ++b) max_left[b] = std::max(max_left[b - 1], smooth[b - 1]);
+        for (int b = bins - 2; b >= 0; --b)
+            max_right[b] = std::max(max_right[b + 1], smooth[b + 1]);
+        int split = -1;
+        double deepest = 0.25;
+        const int total = below[bins];
+        for (int b = 1; b + 1 < bins; ++b) {
+            const int side_peak = std::min(max_left[b], max_right[b]);
+            if (side_peak == 0) continue;
+            const double depth = double(smooth[b]) / side_peak;
+            if (depth >= deepest) continue;
+            if (below[b] < min_size || total - below[b + 1] < min_size) continue;
+            deepest = depth, split = b;
+        }
+        if (split < 0) continue;
+        Cluster upper{cluster.height_m, {}};
+        std::vector<std::size_t> lower;
+        for (const std::size_t i : cluster.members) {
+            (bin_of(rays[i], row) > split ? upper.members : lower).push_back(i);
+        }
+        // Two rings each go all around; a ring smeared by motion (a deskewed scan) is high on one
+        // side and low on the other, so its halves see different azimuths.
+        constexpr int kSectors = 360;
+        const auto sectors_of = [&](const std::vector<std::size_t>& members) {
+            std::vector<char> seen(kSectors, 0);
+            for (const std::size_t i : members) {
+                const int s = static_cast<int>((rays[i].azimuth + kPi) / (2.0 * kPi) * kSectors);
+                seen[std::clamp(s, 0, kSectors - 1)] = 1;
+            }
+            return seen;
+        };
+        const std::vector<char> seen_upper = sectors_of(upper.members),
+                                seen_lower = sectors_of(lower);
+        int both = 0, n_upper = 0, n_lower = 0;
+        for (int s = 0; s < kSectors; ++s) {
+            both += seen_upper[s] && seen_lower[s];
+            n_upper += seen_upper[s];
+            n_lower += seen_lower[s];
+        }
+        if (both < kMinSharedAzimuths * std::min(n_upper, n_lower)) continue;
+        cluster.members.swap(lower);
+        clusters.push_back(std::move(upper));
+        --k;  // the lower part may hold another ring
+    }
     std::vector<Ring> rings;
     for (const Cluster& cluster : clusters) {
         if (double(cluster.members.size()) < min_size) continue;
@@ -284,14 +346,77 @@ SphericalLidarModel infer_spherical_lidar(const std::vector<Eigen::Vector3f>& po
         }
         rings.push_back({median(elevations), cluster.height_m, gaps.empty() ? 0.0 : median(gaps)});
     }
+    std::sort(rings.begin(), rings.end(),
+              [](const Ring& a, const Ring& b) { return a.elevation_rad > b.elevation_rad; });
+    return rings;
+}
+
+/// How many rays lie within `tolerance_rad` of the cone of the ring nearest to them: a wrong spin
+/// axis or merged rings leave most points out of focus.
+std::size_t points_in_focus(const std::vector<Ray>& rays, const std::vector<Ring>& rings,
+                            double tolerance_rad) {
+    SphericalLidarModel model;
+    for (const Ring& ring : rings) {
+        model.elevations_rad.push_back(ring.elevation_rad);
+        model.beam_heights_m.push_back(ring.height_m);
+    }
+    std::size_t in_focus = 0;
+    for (const Ray& ray : rays) {
+        if (!(ray.radius_m > 0.0)) continue;
+        const int k = nearest_ring(model, std::atan2(ray.z_m, ray.radius_m), 1.0 / ray.radius_m);
+        if (k < 0) continue;
+        const double e = std::atan2(ray.z_m - model.beam_heights_m[k], ray.radius_m);
+        in_focus += std::abs(e - model.elevations_rad[k]) <= tolerance_rad;
+    }
+    return in_focus;
+}
+
+}  // namespace
+
+SphericalLidarModel infer_spherical_lidar(const std::vector<Eigen::Vector3f>& points_sensor,
+                                          const SphericalLidarConfig& config) {
+    std::vector<Eigen::Vector3d> points, units;
+    for (const Eigen::Vector3f& p : points_sensor) {
+        const Eigen::Vector3d q = p.cast<double>();
+        const double r = q.norm();
+        if (q.allFinite() && r >= config.min_range_m && r > 0.0) {
+            points.push_back(q);
+            units.push_back(q / r);
+        }
+    }
+    if (units.size() < 16) {
+        throw DataError("cannot infer the LiDAR's beam layout: only " +
+                        std::to_string(units.size()) + " points are at least " +
+                        std::to_string(config.min_range_m) + " m away");
+    }
+    // The axis search scores unit directions, which beam heights smear by h / r_xy (over a degree
+    // within 10 m on an HDL-64E): it can settle a tenth of a degree off an untilted sensor's z and
+    // merge rings there. So the sensor's z is a candidate too, and the axis kept is the one whose
+    // rings hold the most points in focus.
+    std::vector<Eigen::Vector3d> axes = {search_spin_axis(units, config)};
+    if (axes.front() != Eigen::Vector3d::UnitZ()) axes.push_back(Eigen::Vector3d::UnitZ());
+    SphericalLidarModel model;
+    std::vector<Ring> rings;
+    std::size_t best_in_focus = 0;
+    const double tolerance_rad = config.focus_tolerance_deg * kDegToRad;
+    for (const Eigen::Vector3d& axis : axes) {
+        const Eigen::Matrix3d R_sensor_beams = frame_with_z(axis);
+        const std::vector<Ray> rays = rays_about(points, R_sensor_beams);
+        std::vector<Ring> found = find_rings(rays, config);
+        const std::size_t in_focus = points_in_focus(rays, found, tolerance_rad);
+        // Ties keep the first candidate: the result does not depend on the order of evaluation.
+        if (rings.empty() || in_focus > best_in_focus) {
+            best_in_focus = in_focus;
+            rings = std::move(found);
+            model.R_sensor_beams = R_sensor_beams;
+        }
+    }
     if (rings.size() < 2) {
         throw DataError("cannot infer the LiDAR's beam layout: the elevations of " +
                         std::to_string(units.size()) + " points form " +
                         std::to_string(rings.size()) +
                         " ring(s); a spinning LiDAR's scan has several");
     }
-    std::sort(rings.begin(), rings.end(),
-              [](const Ring& a, const Ring& b) { return a.elevation_rad > b.elevation_rad; });
     std::vector<double> steps;
     for (const Ring& ring : rings) {
         model.elevations_rad.push_back(ring.elevation_rad);

@@ -6,7 +6,11 @@
 //   1. the spin axis: scan points may be stored in a frame tilted against the sensor's (an IMU or
 //      levelled body frame), where a ring is a cone around a tilted axis. The axis is the one
 //      around which the points' elevation angles are sharpest (largest sum of squared histogram
-//      counts), found by a coarse-to-fine search over tilts up to max_tilt_deg;
+//      counts), found by a coarse-to-fine search over tilts up to max_tilt_deg. Unit directions
+//      are smeared by the beam heights (below), which can pull that search a tenth of a degree off
+//      an untilted sensor's z and merge rings there; so the rings are found about both the axis
+//      found and the sensor's z, and the axis kept is the one whose rings hold the most points
+//      within focus_tolerance_deg of their cones (ties keep the axis found);
 //   2. the rings: a beam need not leave from the sensor's origin. An HDL-64E's lasers sit 0.12 m
 //      (lower block) and 0.21 m (upper block) above it, so each ring is a cone whose apex is on
 //      the spin axis at the ring's own beam height h: z = r_xy tan(elevation) + h. Seen from the
@@ -18,7 +22,12 @@
 //      thick ring of a deskewed scan stays whole); its points are taken out and the next peak
 //      is sought. Clusters holding fewer than min_ring_share of the median cluster's points are
 //      noise (mixed pixels between rings) and dropped; each ring's elevation is its points'
-//      median about its beam height;
+//      median about its beam height. Two rings that mostly hit the ground at one range are sharp
+//      from many beam heights and can be bridged by the points between them: a cluster is split
+//      at its deepest dip (under a quarter of the smaller side's peak) when both sides hold at
+//      least min_ring_share x the median cluster and both go all around (see at least 80 % of
+//      the same 1-degree azimuth sectors); a ring smeared by motion is high on one side and low
+//      on the other, so its halves see different azimuths and it stays whole;
 //   3. the azimuth step: per ring, the median gap between its successive azimuths, ignoring
 //      gaps finer than any LiDAR's step (duplicated returns); the median over rings, rounded so a
 //      whole number of columns fills the turn.
@@ -47,6 +56,9 @@ struct SphericalLidarConfig {
     double max_beam_height_m = 0.3;  ///< beam-height search range around the origin; 0 = origin
     double beam_height_step_m = 0.005;  ///< step of that search
     std::size_t max_points = 20000;     ///< points used for the axis search (an even subsample)
+    /// A point this close to its ring's cone is in focus; the spin axis whose rings hold the most
+    /// such points is kept.
+    double focus_tolerance_deg = 0.05;
 };
 
 /// Rings x columns of a spinning LiDAR, about a spin axis in the sensor frame.
