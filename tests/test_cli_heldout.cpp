@@ -29,7 +29,9 @@ fs::path street() {
     return dir;
 }
 
-/// Checks the held-out block of `stats` and that `shine eval --heldout` agrees with it.
+/// Checks the held-out block of `stats` and that `shine eval --heldout` agrees with it (at the
+/// map's refined poses when it wrote them: held-out scans are scored there with the mapped
+/// scans' corrections, docs/field.md).
 void expect_heldout_scored(const nlohmann::json& stats, const fs::path& mesh, double min_within) {
     const nlohmann::json& heldout = stats.at("heldout");
     ASSERT_EQ(heldout.at("scans").size(), 3u);
@@ -40,8 +42,11 @@ void expect_heldout_scored(const nlohmann::json& stats, const fs::path& mesh, do
     std::printf("held out: hit %.4f within %.4f median %.4f m\n",
                 total.at("hit_ratio").get<double>(), total.at("within_ratio").get<double>(),
                 total.at("median_abs_error_m").get<double>());
+    const fs::path refined = mesh.parent_path() / "poses_refined.txt";
+    const std::string poses =
+        fs::exists(refined) ? " --poses '" + refined.string() + "'" : std::string();
     const CliResult e = run("eval --pred '" + mesh.string() + "' --heldout '" + street().string() +
-                            "' --holdout-every 2 --json");
+                            "' --holdout-every 2 --json" + poses);
     ASSERT_EQ(e.exit_code, 0) << e.output;
     const nlohmann::json again = nlohmann::json::parse(e.output).at("total");
     EXPECT_EQ(again.at("rays"), total.at("rays"));
