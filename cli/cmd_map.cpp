@@ -424,7 +424,13 @@ int run_map(const MapOptions& given_options) {
     seq_options.topic = opt.topic;
     seq_options.poses = PoseFileUse::kIfPresent;
     ScanSequence selected = ScanSequence::open(data, seq_options);
-    selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
+    // Times from the azimuth under `auto` only where they were measured to win: batch mode with
+    // the poses refined (the refinement registers the deskewed scans; at given poses, fitted to
+    // the skewed scans, deskewing lost points on the real drive: docs/field.md).
+    if (config.deskew.azimuth_times != DeskewMode::kAuto ||
+        (opt.mode == "batch" && config.refine.rounds > 0)) {
+        selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
+    }
     if (!selected.has_poses() && !incremental && !estimate_requested &&
         !config.odometry.estimate_poses) {
         const std::string estimate_hint =

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <string>
@@ -154,7 +155,10 @@ SweepTestResult run_sweep_test(const ScanSequence& sequence, const SweepTimeMode
                       "the sensor moves %.3f m in a sweep, below %.3f m: nothing to deskew",
                       result.sweep_motion_m, config.min_sweep_motion_m);
     } else {
-        result.skewed = best >= result.inliers_as_measured + config.min_gain;
+        const double asymmetry =
+            std::abs(result.inliers_clockwise - result.inliers_counterclockwise);
+        result.skewed = best >= result.inliers_as_measured + config.min_gain &&
+                        asymmetry >= config.min_asymmetry;
         std::snprintf(text, sizeof(text),
                       "%.1f %% of points on the planes as measured, %.1f %% deskewed clockwise, "
                       "%.1f %% counter-clockwise (%zu pairs, %.2f m a sweep)",

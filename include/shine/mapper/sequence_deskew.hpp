@@ -24,12 +24,13 @@
 // and times from the files it leaves the scans as measured, as before deskewing existed; `off`
 // never deskews.
 //
-// Times from the azimuth (deskew.azimuth_times): `off` (the default) leaves scans without time
-// fields as they are; `auto` lets the sweep test decide whether such a sequence is skewed and
-// which way its beams turn; `on` times them with deskew.sweep_direction / sweep_start_deg /
-// pose_azimuth_deg as configured. Off by default because it did not win where it was measured:
-// on the real KITTI-360 drive, deskewed by the azimuth at given poses, 0.7-0.8 points fewer
-// held-out rays fall within 10 cm (docs/field.md).
+// Times from the azimuth (deskew.azimuth_times): `auto` (the default) lets the sweep test decide
+// whether a sequence of scans without time fields is skewed and which way its beams turn, in
+// batch mode with the poses refined (`shine map` applies it there only: at given poses, fitted by
+// an odometry to the skewed scans, deskewing lost 0.7-0.8 points of held-out rays on the real
+// KITTI-360 drive, with refined poses it gained 0.8; docs/field.md); `on` times them with
+// deskew.sweep_direction / sweep_start_deg / pose_azimuth_deg as configured, in every mode;
+// `off` never.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -55,9 +56,9 @@ struct DeskewConfig {
     /// Seconds between consecutive scans of a sequence without stamps (files): 0.1 s, 10 Hz;
     /// also the sweep period of times from the azimuth.
     double scan_period_s = 0.1;
-    /// Scans without a time field timed from their azimuths (file comment): off (the default),
-    /// auto or on.
-    DeskewMode azimuth_times = DeskewMode::kOff;
+    /// Scans without a time field timed from their azimuths (file comment): auto (the default),
+    /// on or off.
+    DeskewMode azimuth_times = DeskewMode::kAuto;
     /// The sweep of azimuth_times on (its period is scan_period_s); with auto, the sweep test
     /// keeps the start and pose azimuths and chooses the direction.
     SweepTimeModel sweep;

@@ -11,7 +11,8 @@
 // the poses around each scan (odometry/scan_deskew.hpp) -- is scored by point-to-plane ICP of
 // scan i + gap onto scan i: the share of its points within inlier_m of the other's planes after
 // the alignment. A deskewing hypothesis wins when its share beats the as-measured one by at least
-// min_gain (absolute); the better direction wins between the two.
+// min_gain (absolute) and the two directions differ by at least min_asymmetry; the better
+// direction wins between the two.
 //
 // The poses around a scan are the sequence's (given) or, without poses, the ICP of each raw scan
 // onto the one before (a plain odometry good to centimetres over one scan, enough for the
@@ -31,12 +32,15 @@ namespace shine {
 /// How the sweep test samples and scores (file comment).
 struct SweepTestConfig {
     std::size_t pairs = 4;      ///< scan pairs tested, spread over the sequence
-    std::size_t gap = 2;        ///< scan j = i + gap is aligned onto scan i
+    std::size_t gap = 4;        ///< scan j = i + gap is aligned onto scan i
     double voxel_size_m = 0.3;  ///< the scans are thinned to one point per voxel
     double min_range_m = 2.0;   ///< closer points are not used (the vehicle)
     double max_range_m = 50.0;  ///< farther points are not used
-    double inlier_m = 0.05;     ///< a point within this of the other scan's planes is an inlier
-    double min_gain = 0.01;     ///< a deskewing hypothesis must beat as-measured by this share
+    double inlier_m = 0.03;     ///< a point within this of the other scan's planes is an inlier
+    double min_gain = 0.005;    ///< a deskewing hypothesis must beat as-measured by this share
+    /// ... and the two directions must differ by this share: an instantaneous scan deskewed
+    /// either way is bent alike, a skewed one is straightened one way and bent twice the other.
+    double min_asymmetry = 0.01;
     double min_sweep_motion_m = 0.02;  ///< slower sequences are not tested (nothing to deskew)
 };
 
