@@ -425,10 +425,12 @@ int run_map(const MapOptions& given_options) {
     seq_options.poses = PoseFileUse::kIfPresent;
     ScanSequence selected = ScanSequence::open(data, seq_options);
     // Times from the azimuth under `auto` only where they were measured to win: batch mode with
-    // the poses refined (the refinement registers the deskewed scans; at given poses, fitted to
-    // the skewed scans, deskewing lost points on the real drive: docs/field.md).
+    // given poses, refined (the refinement registers the deskewed scans; at given poses, fitted
+    // to the skewed scans, deskewing lost points on the real drive, and with estimated poses it
+    // lost 0.3-0.9 points: docs/field.md).
     if (config.deskew.azimuth_times != DeskewMode::kAuto ||
-        (opt.mode == "batch" && config.refine.rounds > 0)) {
+        (opt.mode == "batch" && config.refine.rounds > 0 && !estimate_requested &&
+         selected.has_poses())) {
         selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
     }
     if (!selected.has_poses() && !incremental && !estimate_requested &&

@@ -26,7 +26,7 @@
 //
 // Times from the azimuth (deskew.azimuth_times): `auto` (the default) lets the sweep test decide
 // whether a sequence of scans without time fields is skewed and which way its beams turn, in
-// batch mode with the poses refined (`shine map` applies it there only: at given poses, fitted by
+// batch mode with given poses refined (`shine map` applies it there only: at given poses, fitted by
 // an odometry to the skewed scans, deskewing lost 0.7-0.8 points of held-out rays on the real
 // KITTI-360 drive, with refined poses it gained 0.8; docs/field.md); `on` times them with
 // deskew.sweep_direction / sweep_start_deg / pose_azimuth_deg as configured, in every mode;
