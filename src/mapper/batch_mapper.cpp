@@ -280,8 +280,8 @@ void BatchMapper::save_state(BinaryWriter& out) const {
     out.value(stats_);
     out.value<std::int32_t>(iterations_done_);
     out.value(bce_average_);
-    // Pose refinement: the rounds run and the scans' current poses (the rays are moved again on
-    // load, and the map reallocated if the last round ran), before the map they shaped.
+    // Pose refinement: the rounds run and the scans' current poses (the rays are moved to them
+    // again on load), before the map trained at them.
     out.value<std::uint64_t>(rounds_.size());
     for (const PoseRefinementRound& round : rounds_) out.value(round);
     for (const Eigen::Isometry3d& T : poses_map_) {
