@@ -554,6 +554,8 @@ int run_map(const MapOptions& given_options) {
     ScanSequence scored = selected;
     nlohmann::json refine_json;
     if (batch_map && !batch_map->refinement.empty()) {
+        // The poses the map started from: the data's, or with estimated poses the estimates
+        // (held-out scans placed next to them).
         std::vector<Eigen::Isometry3d> given(selected.size());
         std::vector<double> frame_numbers(selected.size());
         std::vector<bool> is_mapped(selected.size(), false);
@@ -561,14 +563,10 @@ int run_map(const MapOptions& given_options) {
             given[i] = selected.pose(i);
             frame_numbers[i] = static_cast<double>(selected.frame_number(i));
         }
-        const std::vector<Eigen::Isometry3d> mapped_given =
-            odometry_run ? odometry_run->odometry->poses() : std::vector<Eigen::Isometry3d>{};
-        for (std::size_t m = 0; m < split.mapped.size(); ++m) {
-            is_mapped[split.mapped[m]] = true;
-            if (odometry_run) given[split.mapped[m]] = mapped_given[m];
-        }
-        if (odometry_run && !split.heldout.empty()) {
-            given = heldout_poses_local_to_estimate(selected, split, mapped_given);
+        for (const std::size_t m : split.mapped) is_mapped[m] = true;
+        if (odometry_run) {
+            given =
+                heldout_poses_local_to_estimate(selected, split, odometry_run->odometry->poses());
         }
         const std::vector<Eigen::Isometry3d> refined = interpolate_corrections(
             given, is_mapped, batch_map->refined_poses_world, frame_numbers);
@@ -581,7 +579,7 @@ int run_map(const MapOptions& given_options) {
             stamped[i].T_world_sensor = refined[i];
         }
         write_tum_poses(out / "poses_refined_tum.txt", stamped);
-        if (selected.has_poses() || odometry_run) scored = selected.with_poses(refined);
+        scored = selected.with_poses(refined);
         refine_json["rounds"] = nlohmann::json::array();
         for (const PoseRefinementRound& r : batch_map->refinement) {
             refine_json["rounds"].push_back({{"step", r.step},

@@ -243,7 +243,6 @@ bool BatchMapper::run_steps(int until, bool refining,
             poses_map_ = std::move(refined);
             round.step = step;
             rounds_.push_back(round);
-            stats_.refine_seconds += round.seconds;
         }
     };
     bool stopped = false;
@@ -280,15 +279,6 @@ void BatchMapper::save_state(BinaryWriter& out) const {
     out.value(stats_);
     out.value<std::int32_t>(iterations_done_);
     out.value(bce_average_);
-    // Pose refinement: the rounds run and the scans' current poses (the rays are moved to them
-    // again on load), before the map trained at them.
-    out.value<std::uint64_t>(rounds_.size());
-    for (const PoseRefinementRound& round : rounds_) out.value(round);
-    for (const Eigen::Isometry3d& T : poses_map_) {
-        for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 4; ++c) out.value<double>(T.matrix()(r, c));
-        }
-    }
     save_sdf_parameters(out, *sdf_);
     out.value<std::uint8_t>(trainer_ ? 1 : 0);
     if (trainer_) trainer_->save_state(out);
@@ -311,19 +301,6 @@ void BatchMapper::load_state(BinaryReader& in) {
                                        std::to_string(planned_iterations()));
     }
     const auto bce_average = in.value<double>("running BCE");
-    const auto num_rounds = in.value<std::uint64_t>("pose refinement rounds");
-    if (num_rounds > 1000) in.fail("pose refinement rounds", std::to_string(num_rounds));
-    std::vector<PoseRefinementRound> rounds(num_rounds);
-    for (PoseRefinementRound& round : rounds) round = in.value<PoseRefinementRound>("round");
-    std::vector<Eigen::Isometry3d> poses(poses_map_.size(), Eigen::Isometry3d::Identity());
-    for (Eigen::Isometry3d& T : poses) {
-        for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 4; ++c) T.matrix()(r, c) = in.value<double>("scan pose");
-        }
-    }
-    move_scans(rays_, poses_map_, poses);
-    poses_map_ = std::move(poses);
-    rounds_ = std::move(rounds);
     load_sdf_parameters(in, *sdf_);
     if (in.value<std::uint8_t>("trainer flag")) {
         trainer_ = std::make_unique<Trainer>(*sdf_, config_.batch_trainer(), config_.sampling);

@@ -50,7 +50,6 @@ struct MappingStats {
     double normals_seconds = 0.0;   ///< surface normals for the label correction
     double train_seconds = 0.0;
     double sample_seconds = 0.0;  ///< the part of train_seconds spent drawing samples
-    double refine_seconds = 0.0;  ///< the part of train_seconds spent refining poses
     std::size_t iterations = 0;
     double final_bce = 0.0;
     double final_eikonal = 0.0;
