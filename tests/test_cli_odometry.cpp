@@ -212,9 +212,13 @@ TEST(OdometryCli, StoppedBatchRunRepeatsTheOdometryAndResumesToTheSameMap) {
     ASSERT_EQ(run(batch + "-o '" + reference.string() + "' " + args).exit_code, 0);
     const fs::path out = test_dir() / "batch_resumed";
     fs::remove_all(out);
+    // Polls: 7 while loading the first map of pose refinement, 59 of its steps (the last round
+    // is at step 60), 7 while loading the map itself, then its training steps.
     const CliResult stopped = run(batch + "-o '" + out.string() + "' " + args +
-                                  " --interrupt-after 30");  // a batch training step
+                                  " --interrupt-after " + std::to_string(7 + 59 + 7 + 30));
     ASSERT_EQ(stopped.exit_code, 130) << stopped.output;
+    EXPECT_NE(stopped.output.find("after optimisation step 30 of 100"), std::string::npos)
+        << stopped.output;
     const CliResult resumed = run("map --resume '" + out.string() + "' -q");
     ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
     EXPECT_EQ(read_text(out / "poses.txt"), read_text(reference / "poses.txt"));

@@ -173,27 +173,57 @@ TEST(Resume, IncrementalRunReplayingEarlierScansContinuesToTheSameMap) {
     EXPECT_FALSE(read_text(plain / "mesh.ply") == read_text(reference / "mesh.ply"));
 }
 
+// Batch mode polls for a stop after each scan but the last while loading (3 polls for the 4
+// scans), once for each of the first map's 179 steps before the last round of pose refinement
+// (at step 180 = 60 % of 300), then again while loading for the map itself (not when resuming)
+// and after each of its training steps.
+constexpr int kLoadPolls = 3;
+constexpr int kRefinePolls = 179;
+
 TEST(Resume, BatchRunStoppedDuringTrainingContinuesToTheSameMap) {
     const fs::path reference = reference_run("batch", "--threads 2");
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    // Four scans are loaded (3 polls), then step 100 of 300 is the 103rd poll.
-    expect_stopped_without_products(run(map_args(out, "--threads 2 --interrupt-after 103")), out);
+    const int step_100 = kLoadPolls + kRefinePolls + kLoadPolls + 100;
+    const CliResult stopped =
+        run(map_args(out, "--threads 2 --interrupt-after " + std::to_string(step_100)));
+    expect_stopped_without_products(stopped, out);
+    EXPECT_NE(stopped.output.find("after optimisation step 100 of 300"), std::string::npos)
+        << stopped.output;
     const CliResult r = run("map --resume '" + out.string() + "' -q --threads 2");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     expect_same_result(out, reference);
     EXPECT_EQ(read_json(out / "stats.json").at("iterations"), 300);
+    EXPECT_EQ(read_text(out / "poses_refined.txt"), read_text(reference / "poses_refined.txt"));
+}
+
+TEST(Resume, BatchRunStoppedWhileRefiningPosesRefinesAgainToTheSameMap) {
+    const fs::path reference = reference_run("batch", "--threads 2");
+    const fs::path out = test_dir() / "out_refining";
+    fs::remove_all(out);
+    const CliResult stopped =
+        run(map_args(out, "--threads 2 --interrupt-after " + std::to_string(kLoadPolls + 100)));
+    expect_stopped_without_products(stopped, out);
+    EXPECT_NE(stopped.output.find("while refining poses, after step 100 of 180"), std::string::npos)
+        << stopped.output;
+    EXPECT_FALSE(fs::exists(out / "poses_refined.txt"));
+    const CliResult r = run("map --resume '" + out.string() + "' -q --threads 1");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    expect_same_result(out, reference);
+    EXPECT_EQ(read_text(out / "poses_refined.txt"), read_text(reference / "poses_refined.txt"));
 }
 
 TEST(Resume, HalfPrecisionRunStoppedTwiceContinuesToTheSameMap) {
     const fs::path reference = reference_run("half", "--threads 2 --half-features");
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    // Stopped while loading, then again during training (the float32 master copy must survive).
+    // Stopped while loading, then again during training (the float32 master copy must survive;
+    // the resumed run refines the poses again and does not poll while loading).
     expect_stopped_without_products(
         run(map_args(out, "--threads 2 --half-features --interrupt-after 2")), out);
     const CliResult again =
-        run("map --resume '" + out.string() + "' -q --threads 2 --interrupt-after 150");
+        run("map --resume '" + out.string() + "' -q --threads 2 --interrupt-after " +
+            std::to_string(kLoadPolls + kRefinePolls + 150));
     expect_stopped_without_products(again, out);
     EXPECT_NE(again.output.find("after optimisation step 150 of 300"), std::string::npos)
         << again.output;

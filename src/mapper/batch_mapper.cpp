@@ -201,9 +201,12 @@ bool BatchMapper::train(const std::function<void(std::size_t, double)>& on_progr
     return run_steps(planned_iterations(), false, on_progress, stop);
 }
 
-std::vector<Eigen::Isometry3d> BatchMapper::refine_poses(
-    const std::function<void(std::size_t, double)>& on_progress) {
-    if (refinement().rounds > 0) run_steps(refinement_steps(), true, on_progress, {});
+std::optional<std::vector<Eigen::Isometry3d>> BatchMapper::refine_poses(
+    const std::function<void(std::size_t, double)>& on_progress,
+    const std::function<bool()>& stop) {
+    if (refinement().rounds > 0 && !run_steps(refinement_steps(), true, on_progress, stop)) {
+        return std::nullopt;
+    }
     return poses_world();
 }
 

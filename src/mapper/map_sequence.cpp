@@ -84,9 +84,11 @@ void write_batch_checkpoint(const RunControl& control, const BatchMapper& mapper
 /// trained up to the last round of refinement, the rounds on the way. The dynamic-point filter
 /// is off here: at poses off by centimetres other scans see through true surfaces, and points
 /// it drops are lost to the map made at the refined poses.
+/// A stop request (control) ends it with a loading-phase checkpoint: a resumed run refines again.
 std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
                                                      const ScanSequence& sequence,
                                                      const std::string& progress_tag,
+                                                     const RunControl* control,
                                                      std::vector<PoseRefinementRound>& rounds) {
     MapperConfig first = config;
     first.dynamic.enabled = false;
@@ -94,6 +96,15 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
     const bool deskew =
         deskew_active(config.deskew, config.odometry.estimate_poses, sequence.has_sweep_times());
     DeskewStats ignored;
+    const bool checkpoints = control && !control->checkpoint_path.empty();
+    const auto stop = [&] {
+        return checkpoints && control->stop_requested && control->stop_requested();
+    };
+    const auto stop_here = [&](Progress& progress, const std::string& where) {
+        progress.finish("stopped");
+        write_batch_checkpoint(*control, mapper, BatchPhase::kLoading);
+        throw_stopped_with_checkpoint(*control, where);
+    };
     {
         Progress progress(tagged("load", progress_tag), sequence.size());
         for (std::size_t i = 0; i < sequence.size(); ++i) {
@@ -101,6 +112,11 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
             if (deskew) deskew_with_sequence_poses(scan, sequence, i, config.deskew, ignored);
             mapper.add_scan(scan);
             progress.update(i + 1, std::to_string(mapper.sdf().octree.num_corners()) + " corners");
+            if (i + 1 < sequence.size() && stop()) {
+                stop_here(progress, "while loading for pose refinement, after scan " +
+                                        std::to_string(i + 1) + " of " +
+                                        std::to_string(sequence.size()));
+            }
         }
         mapper.finish_scans();
         progress.finish(std::to_string(mapper.stats().rays) + " rays");
@@ -109,11 +125,20 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
     {
         Progress progress(tagged("refine", progress_tag),
                           static_cast<std::size_t>(mapper.refinement_steps()));
-        poses_world = mapper.refine_poses([&](std::size_t done, double bce) {
-            char detail[64];
-            std::snprintf(detail, sizeof(detail), "bce %.4f", bce);
-            progress.update(done, detail);
-        });
+        std::optional<std::vector<Eigen::Isometry3d>> refined = mapper.refine_poses(
+            [&](std::size_t done, double bce) {
+                char detail[64];
+                std::snprintf(detail, sizeof(detail), "bce %.4f", bce);
+                progress.update(done, detail);
+            },
+            stop);
+        if (!refined) {
+            stop_here(progress, "while refining poses, after step " +
+                                    std::to_string(mapper.iterations_done()) + " of " +
+                                    std::to_string(mapper.refinement_steps()) +
+                                    " (a resumed run refines them again)");
+        }
+        poses_world = std::move(*refined);
         const PoseRefinementRound& last = mapper.refinement_rounds().back();
         char detail[128];
         std::snprintf(detail, sizeof(detail), "%zu rounds, last: %zu scans moved, median %.1f mm",
@@ -139,7 +164,7 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
     if (config.refine.rounds > 0 && sequence.size() >= 3) {
         const auto t0 = std::chrono::steady_clock::now();
         result.refined_poses_world =
-            refine_sequence_poses(config, sequence, progress_tag, result.refinement);
+            refine_sequence_poses(config, sequence, progress_tag, control, result.refinement);
         result.refine_seconds = seconds_since(t0);
         sequence = sequence.with_poses(result.refined_poses_world);
     }

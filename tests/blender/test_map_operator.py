@@ -119,7 +119,8 @@ def check_cancel(settings, output_dir: str) -> None:
     run_map_operator()
     deadline = time.monotonic() + RUN_TIMEOUT_S
     job = map_run.current().job
-    while job.progress is None or job.progress.stage != "train":  # cancel while training
+    # Cancel while training: the first map of the pose refinement ("refine") or the map itself.
+    while job.progress is None or job.progress.stage not in ("refine", "train"):
         expect(time.monotonic() < deadline, "shine map did not start training")
         still_running = map_run.step() is not None
         expect(still_running, f"shine ended before training: {map_run.current().error}")

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "shine/io/preprocess.hpp"
@@ -112,8 +113,11 @@ class BatchMapper {
     /// config.refine, running the rounds on the way, and returns the refined poses (world frame,
     /// one per scan; the given ones when config.refine.rounds is 0). train() never refines: it
     /// trains at the poses the scans have (map_sequence() makes the map at refined poses).
-    std::vector<Eigen::Isometry3d> refine_poses(
-        const std::function<void(std::size_t done, double bce)>& on_progress = {});
+    /// Returns std::nullopt when `stop` returned true (polled after every step): the rounds
+    /// left were not run.
+    std::optional<std::vector<Eigen::Isometry3d>> refine_poses(
+        const std::function<void(std::size_t done, double bce)>& on_progress = {},
+        const std::function<bool()>& stop = {});
     /// config.refine at this map's leaf and range limits.
     PoseRefinementConfig refinement() const;
     /// The steps of refine_poses(): the last round's step (0 without refinement).
