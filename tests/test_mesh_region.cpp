@@ -108,7 +108,9 @@ TEST(RegionMesh, SameQuadsAsMeshingAtOnceWithSeamsWelded) {
         const TriangleMesh mesh = read_ply_mesh(dir / "mesh.ply");
         EXPECT_EQ(stats.triangles, mesh.triangles.size());
         EXPECT_EQ(stats.vertices, mesh.vertices.size());
-        if (region_voxels == 8) EXPECT_GT(stats.regions, 60u);
+        if (region_voxels == 8) {
+            EXPECT_GT(stats.regions, 60u);
+        }
         EXPECT_EQ(mesh.origin_world_m, Eigen::Vector3d(500000, 5e6, 12));
         EXPECT_EQ(mesh.triangles.size(), whole.triangles.size());
         EXPECT_TRUE(quads_of(mesh) == whole_quads) << "the polygons differ";
