@@ -37,7 +37,7 @@ class Progress:
     done: int
     total: int
     seconds: float
-    eta_s: Optional[int]  # None on a stage's final line
+    eta_s: Optional[int]  # None on a stage's final line and until the estimate is stable
     detail: str
 
     @property

@@ -11,6 +11,19 @@ namespace {
 std::atomic<bool> g_enabled{true};
 }
 
+std::optional<double> progress_eta_seconds(std::size_t first_done, double first_seconds,
+                                           std::size_t done, double seconds, std::size_t total) {
+    constexpr double kMinShare = 0.05;   // of the stage's steps since the first one
+    constexpr double kMinSeconds = 1.0;  // since the first step
+    if (done <= first_done || done >= total) return std::nullopt;
+    const double steps = static_cast<double>(done - first_done);
+    const double elapsed = seconds - first_seconds;
+    if (steps < kMinShare * static_cast<double>(total) || elapsed < kMinSeconds) {
+        return std::nullopt;
+    }
+    return elapsed / steps * static_cast<double>(total - done);
+}
+
 void Progress::set_globally_enabled(bool enabled) { g_enabled = enabled; }
 
 Progress::Progress(std::string label, std::size_t total, bool enabled)
@@ -27,6 +40,10 @@ Progress::~Progress() {
 void Progress::update(std::size_t done, const std::string& detail) {
     if (!enabled_) return;
     const auto now = std::chrono::steady_clock::now();
+    if (!first_done_ && done > 0) {
+        first_done_ = done;
+        first_seconds_ = std::chrono::duration<double>(now - start_).count();
+    }
     if (now - last_draw_ < std::chrono::milliseconds(100) && done < total_) return;
     last_draw_ = now;
     draw(done, detail, false);
@@ -47,20 +64,23 @@ void Progress::draw(std::size_t done, const std::string& detail, bool final_line
     char bar[kWidth + 1];
     for (int i = 0; i < kWidth; ++i) bar[i] = i < filled ? '#' : '.';
     bar[kWidth] = '\0';
-    const double eta = fraction > 0.0 ? seconds * (1.0 - fraction) / fraction : 0.0;
+    const std::optional<double> eta =
+        final_line || !first_done_
+            ? std::nullopt
+            : progress_eta_seconds(*first_done_, first_seconds_, done, seconds, total_);
     // On a terminal the line is redrawn in place; in a log file each update is its own line.
     const bool tty = ::isatty(STDERR_FILENO);
     if (!tty && !final_line && done != 0 && fraction < 1.0) {
         // Keep logs short: only about every tenth of the work.
-        static thread_local int last_decile = -1;
         const int decile = static_cast<int>(fraction * 10);
-        if (decile == last_decile) return;
-        last_decile = decile;
+        if (decile == last_decile_) return;
+        last_decile_ = decile;
     }
-    std::fprintf(stderr, "%s%-10s [%s] %zu/%zu  %.1f s%s%s%s%s", tty ? "\r\033[K" : "",
-                 label_.c_str(), bar, std::min(done, total_), total_, seconds,
-                 final_line ? "" : ", ETA ", final_line ? "" : std::to_string((int)eta).c_str(),
-                 final_line ? "" : " s", detail.empty() ? "" : ("  " + detail).c_str());
+    const std::string eta_text =
+        eta ? ", ETA " + std::to_string(static_cast<long long>(*eta + 0.5)) + " s" : "";
+    std::fprintf(stderr, "%s%-10s [%s] %zu/%zu  %.1f s%s%s", tty ? "\r\033[K" : "", label_.c_str(),
+                 bar, std::min(done, total_), total_, seconds, eta_text.c_str(),
+                 detail.empty() ? "" : ("  " + detail).c_str());
     if (final_line || !tty) std::fputc('\n', stderr);
     std::fflush(stderr);
 }
