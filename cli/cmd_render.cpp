@@ -5,6 +5,7 @@
 // Everything is read, checked and rendered in memory before the first file is written, so bad
 // input (a frame out of range, a short pose file, a file that is not a mesh or a map) leaves no
 // output; each file is written under a temporary name and renamed.
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -42,6 +43,8 @@ struct RenderOptions {
     int frame = -1;
     std::string out;
     std::string camera;
+    std::string camera_look_at;
+    std::string camera_rotation;
     std::vector<std::string> slices;
     double pixel_m = 0.0;
     double min_range_m = 1.5;
@@ -107,6 +110,18 @@ int run_render(const RenderOptions& opt) {
     // Parse everything first.
     std::optional<PinholeCamera> camera;
     if (!opt.camera.empty()) camera = parse_pinhole_camera(opt.camera);
+    if (!camera && (!opt.camera_look_at.empty() || !opt.camera_rotation.empty())) {
+        throw ConfigError(
+            "--camera-look-at and --camera-rotation aim a pinhole camera: give --camera "
+            "fx,fy,cx,cy,w,h too");
+    }
+    std::optional<Eigen::Vector3d> look_at_world;
+    if (!opt.camera_look_at.empty()) {
+        look_at_world = parse_point3(opt.camera_look_at, "--camera-look-at");
+    }
+    if (!opt.camera_rotation.empty()) {
+        camera->R_sensor_camera = parse_camera_rotation(opt.camera_rotation);
+    }
     std::vector<SlicePlane> planes;
     for (const std::string& s : opt.slices) planes.push_back(parse_slice_plane(s));
     const Inputs inputs = resolve_inputs(opt.input);
@@ -135,8 +150,21 @@ int run_render(const RenderOptions& opt) {
         const Scan scan = sequence.load(std::size_t(opt.frame));
         PixelRays rays;
         if (camera) {
+            std::string aim = "along the LiDAR's +x, up = its +z";
+            if (look_at_world) {
+                // Image up is the world's up, seen from the sensor.
+                const Eigen::Vector3d target_sensor =
+                    scan.T_world_sensor.inverse() * *look_at_world;
+                const Eigen::Vector3d up_sensor =
+                    scan.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+                camera->R_sensor_camera = camera_looking_at(target_sensor, up_sensor);
+                aim = "at " + opt.camera_look_at + " (world), up = world +z";
+            } else if (!opt.camera_rotation.empty()) {
+                aim = "as --camera-rotation gives";
+            }
             rays = camera_pixel_rays(*camera);
-            std::printf("pinhole camera %d x %d\n", camera->width, camera->height);
+            std::printf("pinhole camera %d x %d looking %s\n", camera->width, camera->height,
+                        aim.c_str());
         } else {
             const SphericalLidarModel model = infer_spherical_lidar(scan.points_sensor);
             rays = scan_pixel_rays(model, scan.points_sensor, opt.min_range_m, opt.max_range_m);
@@ -152,6 +180,12 @@ int run_render(const RenderOptions& opt) {
         const std::string base = frame_name(opt.frame);
         const int w = image.width(), h = image.height();
         const std::vector<float>& range = image.channel("range.V");
+        if (camera) {
+            const auto surface =
+                std::count_if(range.begin(), range.end(), [](float r) { return !std::isnan(r); });
+            std::printf("pixels with a map surface %.2f %%\n",
+                        100.0 * static_cast<double>(surface) / static_cast<double>(range.size()));
+        }
         ColourScale range_scale;
         range_scale.max = std::ceil(finite_quantile(range, 0.99, 1.0));
         products.push_back({out / (base + "_range.png"), std::nullopt,
@@ -248,8 +282,16 @@ const RegisterCommand kRegister(55, [](CLI::App& app, Action& action) {
     cmd->add_option("--poses", opt->poses_path, "pose file (default: found in the sequence)");
     cmd->add_option("-o,--output", opt->out, "output directory")->required();
     cmd->add_option("--camera", opt->camera,
-                    "pinhole camera fx,fy,cx,cy,w,h (pixels) at the sensor, z forward, x right, "
-                    "y down in the sensor frame; default: the LiDAR's own projection");
+                    "pinhole camera fx,fy,cx,cy,w,h (pixels) at the sensor, looking along the "
+                    "LiDAR's forward axis (+x) with its +z up; default: the LiDAR's own "
+                    "projection");
+    auto* look_at = cmd->add_option(
+        "--camera-look-at", opt->camera_look_at,
+        "aim the --camera at this world point x,y,z (m, the poses' frame), image up = world +z");
+    cmd->add_option("--camera-rotation", opt->camera_rotation,
+                    "aim the --camera by a row-major 3x3 rotation from its optical frame (x "
+                    "right, y down, z forward) to the LiDAR's; forward is 0,0,1,-1,0,0,0,-1,0")
+        ->excludes(look_at);
     cmd->add_option("--slice", opt->slices,
                     "SDF slice on an axis-aligned world plane, e.g. z=1.5 (repeatable)");
     cmd->add_option("--pixel-m", opt->pixel_m, "slice pixel size (default: the map's leaf size)")

@@ -3,9 +3,12 @@
 // renderer and the simulator's range noise, not a mapper.
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <regex>
+#include <sstream>
 #include <string>
 
 #include "cli_test_support.hpp"
@@ -56,7 +59,8 @@ TEST_F(RenderCli, RendersASimulatedScanInItsOwn64RingProjection) {
     }
     const ExrImage image = read_exr(dir_ / "out" / "frame_000001.exr");
     EXPECT_EQ(image.height(), 64);
-    for (const char* channel : {"range.V", "normal.X", "normal.Y", "normal.Z", "measured.V", "error.V"}) {
+    for (const char* channel :
+         {"range.V", "normal.X", "normal.Y", "normal.Z", "measured.V", "error.V"}) {
         EXPECT_TRUE(image.has_channel(channel)) << channel;
     }
     // Against the mesh the scan was simulated from, every return has a surface at its measured
@@ -88,6 +92,69 @@ TEST_F(RenderCli, PinholeCameraGivesTheRequestedSize) {
     EXPECT_EQ(image.height(), 120);
     EXPECT_FALSE(image.has_channel("error.V"));
     EXPECT_FALSE(fs::exists(dir_ / "out" / "frame_000000_error.png"));
+}
+
+/// Share of pixels whose ray meets the map (a finite predicted range).
+double surface_share(const ExrImage& image) {
+    const auto& range = image.channel("range.V");
+    const auto hits =
+        std::count_if(range.begin(), range.end(), [](float r) { return !std::isnan(r); });
+    return static_cast<double>(hits) / static_cast<double>(range.size());
+}
+
+TEST_F(RenderCli, PinholeCameraLooksForwardByDefault) {
+    // The obvious first try, a camera at a LiDAR pose, sees the street ahead (measured: 85.4 % of
+    // the pixels meet the street's mesh, the rest is sky); aimed along the LiDAR's z, as the
+    // camera used to be, it sees only sky.
+    constexpr double kMinShare = 0.7;
+    const std::string camera =
+        "--scans '" + street_.string() + "' --frame 0 --camera 100,100,80,60,160,120";
+    CliResult r = run_shine(render((street_ / "gt_mesh.ply").string(), camera), dir_);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_GT(surface_share(read_exr(dir_ / "out" / "frame_000000.exr")), kMinShare) << r.output;
+    fs::remove_all(dir_ / "out");
+    r = run_shine(
+        render((street_ / "gt_mesh.ply").string(), camera + " --camera-rotation 1,0,0,0,1,0,0,0,1"),
+        dir_);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_EQ(surface_share(read_exr(dir_ / "out" / "frame_000000.exr")), 0.0) << r.output;
+}
+
+TEST_F(RenderCli, PinholeCameraLooksAtAWorldPoint) {
+    // The principal point (80, 60) of a camera aimed at the road 10 m ahead of frame 0's LiDAR
+    // (the road is z = 0) meets the road at that point.
+    constexpr double kToleranceM = 0.01;
+    std::ifstream poses(street_ / "poses.txt");
+    double T[12];
+    for (double& x : T) ASSERT_TRUE(poses >> x);
+    const Eigen::Vector3d sensor(T[3], T[7], T[11]);
+    const Eigen::Vector3d target = sensor + Eigen::Vector3d(10.0, 0.0, -sensor.z());
+    std::ostringstream look_at;
+    look_at.precision(17);
+    look_at << target.x() << "," << target.y() << "," << target.z();
+    const CliResult r = run_shine(
+        render((street_ / "gt_mesh.ply").string(),
+               "--scans '" + street_.string() +
+                   "' --frame 0 --camera 100,100,80,60,160,120 --camera-look-at " + look_at.str()),
+        dir_);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const ExrImage image = read_exr(dir_ / "out" / "frame_000000.exr");
+    EXPECT_NEAR(image.channel("range.V")[60 * 160 + 80], (target - sensor).norm(), kToleranceM);
+    // Aiming without a camera, or both ways at once, is an error.
+    EXPECT_NE(
+        run_shine(render((street_ / "gt_mesh.ply").string(),
+                         "--scans '" + street_.string() + "' --frame 0 --camera-look-at 1,2,3"),
+                  dir_)
+            .exit_code,
+        0);
+    EXPECT_NE(
+        run_shine(render((street_ / "gt_mesh.ply").string(),
+                         "--scans '" + street_.string() +
+                             "' --frame 0 --camera 100,100,80,60,160,120 --camera-look-at 1,2,3 "
+                             "--camera-rotation 0,0,1,-1,0,0,0,-1,0"),
+                  dir_)
+            .exit_code,
+        0);
 }
 
 TEST_F(RenderCli, BadInputEndsWithAClearMessageAndNoOutput) {

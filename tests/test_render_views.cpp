@@ -118,7 +118,8 @@ TEST(RenderMapView, PinholeViewOfAPlaneGivesTheAnalyticRange) {
                                Eigen::AngleAxisd(kPi - 0.2, Eigen::Vector3d::UnitX()))
                                   .toRotationMatrix();
     T_world_sensor.translation() = origin + Eigen::Vector3d(3.0, -4.0, 2.5);
-    const PinholeCamera camera = parse_pinhole_camera("200,180,80.5,60,160,120");
+    PinholeCamera camera = parse_pinhole_camera("200,180,80.5,60,160,120");
+    camera.R_sensor_camera.setIdentity();  // the optical frame is the sensor's: z forward
     const PixelRays rays = camera_pixel_rays(camera);
     const MeshRenderer renderer(mesh);
     const ExrImage image = renderer.render(rays, T_world_sensor);
@@ -182,6 +183,43 @@ TEST(RenderMapView, LidarViewOfAPlaneGivesRangeErrorAndMisses) {
     }
     EXPECT_EQ(down, 8 * 360);
     EXPECT_EQ(up, 8 * 360);
+}
+
+TEST(RenderMapView, PinholeCameraLooksAlongTheLidarsForwardAxisByDefault) {
+    constexpr double kTolerance = 1e-12;
+    const PinholeCamera camera = parse_pinhole_camera("100,100,2,1,5,3");
+    const PixelRays rays = camera_pixel_rays(camera);
+    // The principal point (2, 1) looks along +x; the row above it upward (+z), the column to
+    // its right to the LiDAR's right (-y).
+    EXPECT_TRUE(rays.directions_sensor[1 * 5 + 2].isApprox(Eigen::Vector3d::UnitX(), kTolerance));
+    EXPECT_GT(rays.directions_sensor[0 * 5 + 2].z(), 0.0);
+    EXPECT_LT(rays.directions_sensor[1 * 5 + 3].y(), 0.0);
+    EXPECT_TRUE(parse_camera_rotation("0,0,1,-1,0,0,0,-1,0").isApprox(camera_looking_forward()));
+}
+
+TEST(RenderMapView, LookAtAimsTheImageCentreAtTheTarget) {
+    constexpr double kTolerance = 1e-12;
+    const Eigen::Vector3d target(3.0, -4.0, -1.0);
+    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    const Eigen::Matrix3d R = camera_looking_at(target, up);
+    EXPECT_TRUE((R.transpose() * R).isIdentity(kTolerance));
+    EXPECT_NEAR(R.determinant(), 1.0, kTolerance);
+    EXPECT_TRUE(R.col(2).isApprox(target.normalized(), kTolerance));
+    EXPECT_NEAR(R.col(0).dot(up), 0.0, kTolerance);  // no roll: the image's x is level
+    EXPECT_LT(R.col(1).dot(up), 0.0);                // image down points downward
+    // Looking at a point straight ahead reproduces the forward camera.
+    EXPECT_TRUE(camera_looking_at({7, 0, 0}, up).isApprox(camera_looking_forward(), kTolerance));
+    EXPECT_THROW(camera_looking_at({0, 0, 5}, up), ConfigError);
+    EXPECT_THROW(camera_looking_at({0, 0, 0}, up), ConfigError);
+}
+
+TEST(RenderMapView, BadCameraAimsAreClearErrors) {
+    EXPECT_THROW(parse_camera_rotation("1,0,0,0,1,0,0,0"), ConfigError);
+    EXPECT_THROW(parse_camera_rotation("1,0,0,0,1,0,0,0,-1"), ConfigError);  // a reflection
+    EXPECT_THROW(parse_camera_rotation("2,0,0,0,1,0,0,0,1"), ConfigError);
+    EXPECT_THROW(parse_point3("1,2", "--camera-look-at"), ConfigError);
+    EXPECT_THROW(parse_point3("1,2,x", "--camera-look-at"), ConfigError);
+    EXPECT_EQ(parse_point3("1,2.5,-3", "--camera-look-at"), Eigen::Vector3d(1, 2.5, -3));
 }
 
 TEST(RenderMapView, BadCameraAndSliceTextsAreClearErrors) {
