@@ -1,0 +1,318 @@
+// `shine localize MAP DATA -o OUT`: the pose of every scan of DATA in a saved map, which is never
+// changed (mapper/map_localizer.hpp, docs/localize.md). Writes OUT/poses.txt (KITTI),
+// OUT/poses_tum.txt and OUT/stats.json; DATA's own poses, if any, only score the result.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cli_common.hpp"
+#include "command_registry.hpp"
+#include "shine/core/atomic_file.hpp"
+#include "shine/core/error.hpp"
+#include "shine/core/median.hpp"
+#include "shine/core/progress.hpp"
+#include "shine/io/file_contents.hpp"
+#include "shine/io/kitti.hpp"
+#include "shine/io/tum.hpp"
+#include "shine/mapper/map_localizer.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
+#include "shine/model/map_file.hpp"
+#include "shine/odometry/trajectory_error.hpp"
+
+namespace shine::cli {
+namespace {
+namespace fs = std::filesystem;
+
+struct LocalizeOptions {
+    std::string map;
+    std::string data;
+    std::string out;
+    std::string initial_pose_path;
+    LocalizeConfig config;
+    int threads = 0;
+    int first_frame = 0, last_frame = -1, frame_step = 1;
+    std::string poses_path;
+    std::string topic;
+    bool quiet = false;
+};
+
+/// map.vdb of a `shine map` output folder, or the file itself.
+fs::path map_file_of(const fs::path& map) {
+    std::error_code ec;
+    if (fs::is_directory(map, ec)) {
+        const fs::path file = map / "map.vdb";
+        if (!fs::exists(file, ec)) {
+            throw IoError("'" + map.string() +
+                          "' holds no map.vdb: give a `shine map` output folder or its map.vdb");
+        }
+        return file;
+    }
+    if (!fs::exists(map, ec)) throw IoError("map '" + map.string() + "' does not exist");
+    return map;
+}
+
+/// The trajectory the map was made along (the places of the global search), from the map's
+/// folder: the refined poses of a batch run, else the estimated ones; empty when neither is there.
+std::vector<Eigen::Isometry3d> map_trajectory(const fs::path& map_file, std::string& source) {
+    for (const char* name : {"poses_refined.txt", "poses.txt"}) {
+        const fs::path path = map_file.parent_path() / name;
+        std::error_code ec;
+        if (fs::exists(path, ec)) {
+            source = path.string();
+            return read_kitti_poses(path);
+        }
+    }
+    source.clear();
+    return {};
+}
+
+/// The first pose of a KITTI (12 numbers a line) or TUM (8) pose file.
+Eigen::Isometry3d first_pose_of(const fs::path& path) {
+    const std::string text =
+        read_file_contents(path, "initial pose file", "a KITTI or TUM pose file");
+    std::size_t start = 0;
+    while (start < text.size()) {
+        std::size_t end = text.find('\n', start);
+        if (end == std::string::npos) end = text.size();
+        const std::string line = text.substr(start, end - start);
+        start = end + 1;
+        const std::size_t first = line.find_first_not_of(" \t\r");
+        if (first == std::string::npos || line[first] == '#') continue;
+        std::size_t fields = 0;
+        bool in_field = false;
+        for (const char c : line) {
+            const bool space = c == ' ' || c == '\t' || c == '\r';
+            if (!space && !in_field) ++fields;
+            in_field = !space;
+        }
+        if (fields == 12) return parse_kitti_poses(text, path.string()).front();
+        if (fields == 8) return parse_tum_poses(text, path.string()).front().T_world_sensor;
+        throw IoError("initial pose file '" + path.string() + "': its first pose line has " +
+                      std::to_string(fields) +
+                      " fields; expected 12 (KITTI: a row-major 3x4 [R|t]) or 8 (TUM: time tx ty "
+                      "tz qx qy qz qw)");
+    }
+    throw IoError("initial pose file '" + path.string() + "' holds no pose");
+}
+
+double rotation_deg(const Eigen::Matrix3d& R) {
+    return Eigen::AngleAxisd(R).angle() * 180.0 / M_PI;
+}
+
+int run_localize(const LocalizeOptions& opt) {
+    Progress::set_globally_enabled(!opt.quiet);
+    auto thread_limit = limit_threads(opt.threads);
+    validate(opt.config);
+    const fs::path map_file = map_file_of(opt.map);
+    const fs::path out(opt.out);
+
+    ScanSequenceOptions seq_options;
+    seq_options.first_frame = opt.first_frame;
+    seq_options.last_frame = opt.last_frame;
+    seq_options.frame_step = opt.frame_step;
+    seq_options.poses_path = opt.poses_path;
+    seq_options.topic = opt.topic;
+    seq_options.poses = PoseFileUse::kIfPresent;
+    const ScanSequence sequence = ScanSequence::open(opt.data, seq_options);
+    std::optional<Eigen::Isometry3d> initial;
+    if (!opt.initial_pose_path.empty()) initial = first_pose_of(opt.initial_pose_path);
+
+    const LoadedMap loaded = load_neural_map(map_file);
+    std::string trajectory_source;
+    const std::vector<Eigen::Isometry3d> trajectory = map_trajectory(map_file, trajectory_source);
+    MapLocalizer localizer(loaded.sdf, opt.config, trajectory);
+    if (initial) localizer.set_initial_pose(*initial);
+    if (!opt.quiet) {
+        std::printf("map %s: %zu feature corners, leaf %.2f m, %zu surface points\n",
+                    map_file.c_str(), loaded.sdf.octree.num_corners(),
+                    loaded.sdf.octree.config().leaf_size_m, localizer.surface_points());
+        if (initial) {
+            std::printf("first scan from the pose in %s\n", opt.initial_pose_path.c_str());
+        } else if (!trajectory.empty()) {
+            std::printf("first scan: searched around %zu places of the map's trajectory (%s)\n",
+                        localizer.places().size(), trajectory_source.c_str());
+        } else {
+            std::printf(
+                "first scan: searched around the world origin only (no --initial-pose and no "
+                "trajectory beside the map)\n");
+        }
+    }
+
+    ensure_directory(out);
+    std::size_t failures_in_a_row = 0;
+    {
+        Progress progress("localize", sequence.size());
+        for (std::size_t i = 0; i < sequence.size(); ++i) {
+            const Scan scan = sequence.load(i);
+            const LocalizeRecord& r = localizer.localize(scan.points_sensor);
+            if (!r.localized) {
+                if (!opt.quiet && failures_in_a_row == 0) {
+                    std::printf(
+                        "\nscan %zu (%s): not localised (%.0f %% of %llu points on the map's "
+                        "surface), bridged by the constant-velocity prediction\n",
+                        i, scan.source.filename().c_str(), 100.0 * r.inlier_ratio,
+                        static_cast<unsigned long long>(r.points));
+                }
+                ++failures_in_a_row;
+            } else {
+                if (!opt.quiet && failures_in_a_row > 0) {
+                    std::printf("\nscan %zu: localised again (%s) after %zu scans not localised\n",
+                                i, to_string(r.source), failures_in_a_row);
+                }
+                failures_in_a_row = 0;
+            }
+            char detail[96];
+            std::snprintf(detail, sizeof(detail), "%.0f ms, %.0f %% inliers, %s",
+                          1000.0 * r.seconds, 100.0 * r.inlier_ratio, to_string(r.source));
+            progress.update(i + 1, detail);
+        }
+        progress.finish();
+    }
+
+    const std::vector<LocalizeRecord>& records = localizer.records();
+    std::vector<Eigen::Isometry3d> poses;
+    std::vector<StampedPose> stamped(records.size());
+    std::vector<double> seconds;
+    std::size_t localized = 0;
+    nlohmann::json per_scan = nlohmann::json::array();
+    nlohmann::json sources = {
+        {"tracked", 0}, {"recovered", 0}, {"global-search", 0}, {"prediction", 0}};
+    const double scan_period_s = DeskewConfig{}.scan_period_s;
+    for (std::size_t i = 0; i < records.size(); ++i) {
+        const LocalizeRecord& r = records[i];
+        poses.push_back(r.T_world_sensor);
+        stamped[i].timestamp_s = sequence.from_recording()
+                                     ? sequence.stamp_s(i)
+                                     : sequence.frame_number(i) * scan_period_s;
+        stamped[i].T_world_sensor = r.T_world_sensor;
+        seconds.push_back(r.seconds);
+        localized += r.localized ? 1 : 0;
+        sources[to_string(r.source)] = sources[to_string(r.source)].get<int>() + 1;
+        per_scan.push_back({{"scan", sequence.scan_path(i).filename().string()},
+                            {"localized", r.localized},
+                            {"source", to_string(r.source)},
+                            {"points", r.points},
+                            {"valid_points", r.valid_points},
+                            {"inlier_ratio", r.inlier_ratio},
+                            {"residual_m", r.residual_m},
+                            {"condition_number", r.condition_number},
+                            {"status", to_string(r.status)},
+                            {"iterations", r.iterations},
+                            {"candidates", r.candidates},
+                            {"seconds", r.seconds}});
+    }
+    const double median_s = median(seconds);
+    nlohmann::json json;
+    json["map"] = map_file.string();
+    json["data"] = opt.data;
+    json["threads"] = opt.threads;
+    json["initial_pose"] = opt.initial_pose_path;
+    json["trajectory"] = trajectory_source;
+    json["localize"] = {{"scans", records.size()},
+                        {"localized", localized},
+                        {"sources", sources},
+                        {"median_seconds_per_scan", median_s},
+                        {"max_seconds_per_scan", *std::max_element(seconds.begin(), seconds.end())},
+                        {"per_scan", per_scan}};
+
+    std::printf(
+        "localised %zu of %zu scans (%d tracked, %d recovered by ICP against the surface, %d after "
+        "a "
+        "search of the map; %d bridged by the prediction); median %.1f ms a scan\n",
+        localized, records.size(), sources["tracked"].get<int>(), sources["recovered"].get<int>(),
+        sources["global-search"].get<int>(), sources["prediction"].get<int>(), 1000.0 * median_s);
+
+    if (sequence.has_poses()) {
+        // DATA's poses score the result, in the map's world frame as they are (no alignment)
+        // and after an SE(3) alignment (drift-free figures when the frames differ).
+        std::vector<Eigen::Isometry3d> reference;
+        std::vector<double> translation_m, rotation_deg_error;
+        for (std::size_t i = 0; i < records.size(); ++i) {
+            reference.push_back(sequence.pose(i));
+            const Eigen::Isometry3d error = sequence.pose(i).inverse() * poses[i];
+            translation_m.push_back(error.translation().norm());
+            rotation_deg_error.push_back(rotation_deg(error.linear()));
+        }
+        nlohmann::json errors;
+        errors["median_translation_m"] = median(translation_m);
+        errors["median_rotation_deg"] = median(rotation_deg_error);
+        errors["max_translation_m"] = *std::max_element(translation_m.begin(), translation_m.end());
+        std::printf("against DATA's poses: median error %.2f cm and %.3f deg (max %.2f cm)",
+                    100.0 * median(translation_m), median(rotation_deg_error),
+                    100.0 * errors["max_translation_m"].get<double>());
+        if (records.size() >= 3) {
+            const AbsoluteTrajectoryError ate =
+                absolute_trajectory_error(poses, reference, TrajectoryAlignment::kSe3);
+            errors["ate_se3_rmse_m"] = ate.rmse_m;
+            std::printf(", ATE %.2f cm (SE(3)-aligned RMSE)", 100.0 * ate.rmse_m);
+            try {
+                const RelativePoseError rpe = relative_pose_error(poses, reference);
+                errors["rpe_translation_percent"] = rpe.translation_percent;
+                errors["rpe_rotation_deg_per_100m"] = rpe.rotation_deg_per_100m;
+                std::printf(", RPE %.3f %%", rpe.translation_percent);
+            } catch (const DataError&) {
+                // A trajectory that does not move has no relative error.
+            }
+        }
+        std::printf("\n");
+        json["against_data_poses"] = errors;
+    }
+
+    write_kitti_poses(out / "poses.txt", poses);
+    write_tum_poses(out / "poses_tum.txt", stamped);
+    write_stream_atomically(out / "stats.json",
+                            [&](std::ostream& os) { os << json.dump(2) << "\n"; });
+    if (!opt.quiet) std::printf("wrote %s/{poses.txt, poses_tum.txt, stats.json}\n", out.c_str());
+    return 0;
+}
+
+const RegisterCommand kLocalizeCommand(17, [](CLI::App& app, Action& action) {
+    auto opt = std::make_shared<LocalizeOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "localize",
+        "Localise every scan of DATA in a saved map (never changed): OUT/poses.txt, "
+        "OUT/poses_tum.txt, OUT/stats.json (see docs/localize.md)");
+    cmd->add_option("MAP", opt->map, "a `shine map` output folder, or its map.vdb")->required();
+    cmd->add_option("DATA", opt->data, "scans: any input `shine map` reads")->required();
+    cmd->add_option("-o,--output", opt->out, "output folder")->required();
+    cmd->add_option("--initial-pose", opt->initial_pose_path,
+                    "a KITTI or TUM pose file whose first pose starts the first scan (default: a "
+                    "search around the map's trajectory)");
+    add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,
+                               opt->poses_path);
+    add_topic_option(cmd, opt->topic);
+    cmd->add_option("--search-radius-m", opt->config.search_radius_m,
+                    "how far from the prediction (or a place of the map's trajectory) a search "
+                    "looks, m")
+        ->capture_default_str();
+    cmd->add_option("--kernel-scales-m", opt->config.kernel_scales_m,
+                    "Geman-McClure scales of the coarse-to-fine registration stages, m")
+        ->delimiter(',')
+        ->capture_default_str();
+    cmd->add_option("--search-spacing-m", opt->config.search_spacing_m,
+                    "grid spacing of a search's horizontal offsets, m")
+        ->capture_default_str();
+    cmd->add_option("--search-headings", opt->config.search_headings,
+                    "headings a search tries, 360/N degrees apart")
+        ->capture_default_str();
+    cmd->add_option("--max-points", opt->config.max_points,
+                    "registration points a scan at most (time grows with them)")
+        ->capture_default_str();
+    cmd->add_option("--min-inlier-ratio", opt->config.min_inlier_ratio,
+                    "share of a scan's points near the map's surface for it to count as "
+                    "localised")
+        ->capture_default_str();
+    cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)")
+        ->capture_default_str();
+    cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
+    cmd->callback([opt, &action] { action = [opt] { return run_localize(*opt); }; });
+});
+
+}  // namespace
+}  // namespace shine::cli

@@ -1,0 +1,413 @@
+#include "shine/mapper/map_localizer.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+#include "shine/bake/level_set_bake.hpp"
+#include "shine/core/error.hpp"
+#include "shine/mapper/neural_sdf_field.hpp"
+#include "shine/mesh/level_set_mesh.hpp"
+#include "shine/odometry/registration_points.hpp"
+#include "shine/odometry/sdf_registration.hpp"
+
+namespace shine {
+namespace {
+
+void require(bool ok, const std::string& key, const std::string& rule) {
+    if (!ok) throw ConfigError("localize." + key + " " + rule);
+}
+
+/// Every k-th point, so that at most `max_points` remain (all when max_points <= 0).
+std::vector<Eigen::Vector3f> thinned(const std::vector<Eigen::Vector3f>& points, int max_points) {
+    if (max_points <= 0 || points.size() <= static_cast<std::size_t>(max_points)) return points;
+    const std::size_t stride =
+        (points.size() + static_cast<std::size_t>(max_points) - 1) / max_points;
+    std::vector<Eigen::Vector3f> out;
+    out.reserve(points.size() / stride + 1);
+    for (std::size_t i = 0; i < points.size(); i += stride) out.push_back(points[i]);
+    return out;
+}
+
+/// `pose` turned by `yaw_rad` about the world's vertical axis through its position, and moved
+/// by `offset_world`.
+Eigen::Isometry3d turned(const Eigen::Isometry3d& pose, double yaw_rad,
+                         const Eigen::Vector3d& offset_world) {
+    Eigen::Isometry3d out = pose;
+    out.linear() =
+        Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * pose.linear();
+    out.translation() += offset_world;
+    return out;
+}
+
+}  // namespace
+
+void validate(const LocalizeConfig& c) {
+    require(c.voxel_size_m >= 0.0, "voxel_size_m", "must be >= 0");
+    require(c.min_range_m >= 0.0 && c.max_range_m > c.min_range_m, "max_range_m",
+            "must exceed min_range_m (>= 0)");
+    require(!c.kernel_scales_m.empty(), "kernel_scales_m", "needs at least one scale");
+    for (double s : c.kernel_scales_m) {
+        require(s > 0.0, "kernel_scales_m", "must be positive");
+    }
+    require(c.max_iterations >= 1, "max_iterations", "must be >= 1");
+    require(c.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
+    require(c.inlier_distance_m > 0.0, "inlier_distance_m", "must be positive");
+    require(c.min_inlier_ratio >= 0.0 && c.min_inlier_ratio <= 1.0, "min_inlier_ratio",
+            "must be within [0, 1]");
+    require(c.surface_voxel_m > 0.0, "surface_voxel_m", "must be positive");
+    require(c.icp_correspondence_m > 0.0 && c.icp_coarse_correspondence_m > 0.0,
+            "icp_correspondence_m", "and icp_coarse_correspondence_m must be positive");
+    require(c.icp_kernel_scale_m > 0.0, "icp_kernel_scale_m", "must be positive");
+    require(c.icp_min_inlier_ratio >= 0.0 && c.icp_min_inlier_ratio <= 1.0, "icp_min_inlier_ratio",
+            "must be within [0, 1]");
+    require(c.search_radius_m >= 0.0, "search_radius_m", "must be >= 0");
+    require(c.search_spacing_m > 0.0, "search_spacing_m", "must be positive");
+    require(c.search_headings >= 1, "search_headings", "must be >= 1");
+    require(c.search_points >= 10, "search_points", "must be >= 10");
+    require(c.search_registrations >= 1, "search_registrations", "must be >= 1");
+    require(c.place_spacing_m > 0.0, "place_spacing_m", "must be positive");
+    require(c.global_search_after_failures >= 1, "global_search_after_failures", "must be >= 1");
+}
+
+const char* to_string(LocalizeSource source) {
+    switch (source) {
+        case LocalizeSource::kTracked:
+            return "tracked";
+        case LocalizeSource::kRecovered:
+            return "recovered";
+        case LocalizeSource::kGlobalSearch:
+            return "global-search";
+        case LocalizeSource::kPrediction:
+            return "prediction";
+    }
+    return "unknown";
+}
+
+/// One registration (or search) of a scan: its pose and how well it fits the map there.
+struct MapLocalizer::Attempt {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    bool localized = false;
+    double inlier_ratio = 0.0;
+    std::size_t valid = 0;
+    double residual_m = 0.0;
+    double condition_number = 0.0;
+    RegistrationStatus status = RegistrationStatus::kTooFewPoints;
+    int iterations = 0;
+    int candidates = 0;
+};
+
+MapLocalizer::MapLocalizer(const NeuralSdf& sdf, const LocalizeConfig& config,
+                           std::vector<Eigen::Isometry3d> places_world)
+    : sdf_(sdf), config_(config) {
+    validate(config_);
+    // The trajectory thinned: a place at least place_spacing_m from the one kept before it.
+    for (const Eigen::Isometry3d& pose : places_world) {
+        if (places_.empty() ||
+            (pose.translation() - places_.back().translation()).norm() >= config_.place_spacing_m) {
+            places_.push_back(pose);
+        }
+    }
+    // Step 4's reference: the vertices of the map's zero level set with the mean normal of their
+    // triangles (world frame).
+    BakeConfig bake;
+    bake.voxel_size_m = config_.surface_voxel_m;
+    const TriangleMesh mesh = mesh_level_set(*bake_level_set(sdf_, bake), MeshConfig{});
+    std::vector<Eigen::Vector3d> normals(mesh.vertices.size(), Eigen::Vector3d::Zero());
+    for (const Eigen::Vector3i& t : mesh.triangles) {
+        const Eigen::Vector3d a = mesh.vertices[t[0]].cast<double>();
+        const Eigen::Vector3d n =
+            (mesh.vertices[t[1]].cast<double>() - a).cross(mesh.vertices[t[2]].cast<double>() - a);
+        for (int k = 0; k < 3; ++k) normals[t[k]] += n;
+    }
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector3d> unit_normals;
+    points.reserve(mesh.vertices.size());
+    unit_normals.reserve(mesh.vertices.size());
+    for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+        if (normals[v].norm() <= 0.0) continue;
+        points.push_back(mesh.origin_world_m + mesh.vertices[v].cast<double>());
+        unit_normals.push_back(normals[v].normalized());
+    }
+    if (points.empty()) {
+        throw DataError("the map has no surface to localise against (its SDF never crosses zero)");
+    }
+    surface_ = std::make_unique<ReferencePlanes>(points, unit_normals);
+}
+
+MapLocalizer::~MapLocalizer() = default;
+
+MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& points,
+                                            const Eigen::Isometry3d& start,
+                                            const Eigen::Isometry3d* headings_from) const {
+    PointToPlaneIcpConfig icp;
+    icp.solver.max_iterations = 30;
+    icp.solver.max_condition_number = config_.max_condition_number;
+    icp.solver.kernel.type = RobustKernelType::kGemanMcClure;
+    icp.solver.converged_translation_m = 1e-3;
+    icp.solver.converged_rotation_rad = 1e-4;
+    int iterations = 0;
+    // ICP from `from`, coarse to fine unless `fine_only`: its pose (from itself when no stage
+    // was accepted) and the share of the points on a plane there.
+    const auto run_icp = [&](const Eigen::Isometry3d& from, bool fine_only, double& inlier_ratio) {
+        Eigen::Isometry3d pose = from;
+        const double stages[2][2] = {
+            {config_.icp_coarse_correspondence_m, config_.icp_coarse_correspondence_m / 4.0},
+            {config_.icp_correspondence_m, config_.icp_kernel_scale_m}};
+        for (int s = fine_only ? 1 : 0; s < 2; ++s) {
+            icp.max_correspondence_distance_m = stages[s][0];
+            icp.solver.kernel.scale_m = stages[s][1];
+            const RegistrationResult r = register_point_to_plane(points, pose, *surface_, icp);
+            iterations += r.iterations;
+            // A stage that ran out of iterations still moved towards the basin: the next stage
+            // (or the SDF) goes on from there.
+            if (r.accepted() ||
+                (r.status == RegistrationStatus::kMaxIterations && r.final_cost < r.initial_cost)) {
+                pose = r.accepted() ? r.T_world_sensor : r.T_world_sensor_solved;
+            }
+        }
+        inlier_ratio = point_to_plane_inlier_ratio(
+            points, pose, *surface_, config_.icp_correspondence_m, config_.icp_kernel_scale_m);
+        return pose;
+    };
+    // The narrow stage alone first (a start within about a metre), then coarse to fine, then
+    // the headings.
+    double best_ratio = 0.0;
+    Eigen::Isometry3d best = run_icp(start, true, best_ratio);
+    if (best_ratio < config_.icp_min_inlier_ratio) {
+        double ratio = 0.0;
+        const Eigen::Isometry3d pose = run_icp(start, false, ratio);
+        if (ratio > best_ratio) {
+            best_ratio = ratio;
+            best = pose;
+        }
+    }
+    if (headings_from && best_ratio < config_.icp_min_inlier_ratio) {
+        const double step = 2.0 * M_PI / config_.search_headings;
+        for (int h = 0; h < config_.search_headings; ++h) {
+            double ratio = 0.0;
+            const Eigen::Isometry3d pose =
+                run_icp(turned(*headings_from, h * step, Eigen::Vector3d::Zero()), false, ratio);
+            if (ratio > best_ratio) {
+                best_ratio = ratio;
+                best = pose;
+            }
+        }
+    }
+    Attempt attempt = track(points, best);
+    attempt.iterations += iterations;
+    return attempt;
+}
+
+void MapLocalizer::set_initial_pose(const Eigen::Isometry3d& T_world_sensor) {
+    has_initial_pose_ = true;
+    initial_pose_ = T_world_sensor;
+}
+
+Eigen::Isometry3d MapLocalizer::prediction() const {
+    if (records_.empty()) return has_initial_pose_ ? initial_pose_ : Eigen::Isometry3d::Identity();
+    const Eigen::Isometry3d& last = records_.back().T_world_sensor;
+    if (records_.size() == 1) return last;
+    const Eigen::Isometry3d& before = records_[records_.size() - 2].T_world_sensor;
+    return last * (before.inverse() * last);
+}
+
+void MapLocalizer::score(const std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& pose,
+                         double& inlier_ratio, std::size_t& valid, double& residual_m) const {
+    std::vector<Eigen::Vector3f> points_map(points.size());
+    const Eigen::Matrix3d R = pose.linear();
+    const Eigen::Vector3d t = pose.translation() - sdf_.origin_world_m;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        points_map[i] = (R * points[i].cast<double>() + t).cast<float>();
+    }
+    std::vector<float> sdf_m;
+    std::vector<std::uint8_t> inside;
+    sdf_.query(points_map, QueryMask::kLevel0, sdf_m, inside);
+    std::vector<float> residuals;
+    residuals.reserve(points.size());
+    std::size_t inliers = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        if (!inside[i]) continue;
+        const float r = std::abs(sdf_m[i]);
+        residuals.push_back(r);
+        if (r <= config_.inlier_distance_m) ++inliers;
+    }
+    valid = residuals.size();
+    inlier_ratio = points.empty() ? 0.0 : static_cast<double>(inliers) / points.size();
+    residual_m = 0.0;
+    if (!residuals.empty()) {
+        auto middle = residuals.begin() + residuals.size() / 2;
+        std::nth_element(residuals.begin(), middle, residuals.end());
+        residual_m = *middle;
+    }
+}
+
+MapLocalizer::Attempt MapLocalizer::track(const std::vector<Eigen::Vector3f>& points,
+                                          const Eigen::Isometry3d& start) const {
+    Attempt attempt;
+    attempt.pose = start;
+    const NeuralSdfField field(sdf_);
+    Eigen::Isometry3d from = start;
+    bool last_accepted = false;
+    for (const double scale_m : config_.kernel_scales_m) {
+        SdfRegistrationConfig registration;
+        RegistrationSolverConfig& solver = registration.solver;
+        solver.max_iterations = config_.max_iterations;
+        solver.max_condition_number = config_.max_condition_number;
+        solver.kernel.type = RobustKernelType::kGemanMcClure;
+        solver.kernel.scale_m = scale_m;
+        // As the odometry's stopping rule (odometry_config.hpp): 0.3 mm at 0.5 m voxels.
+        solver.converged_translation_m = 6e-4 * std::max(config_.voxel_size_m, 0.1);
+        solver.converged_rotation_rad = 3e-5;
+        const RegistrationResult result = register_to_sdf(points, from, field, registration);
+        attempt.iterations += result.iterations;
+        attempt.status = result.status;
+        attempt.condition_number = result.condition_number;
+        last_accepted = result.accepted();
+        if (last_accepted) from = result.T_world_sensor;
+    }
+    attempt.pose = from;
+    score(points, from, attempt.inlier_ratio, attempt.valid, attempt.residual_m);
+    attempt.localized = last_accepted && attempt.inlier_ratio >= config_.min_inlier_ratio;
+    return attempt;
+}
+
+MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& points,
+                                           const std::vector<Eigen::Isometry3d>& centres) const {
+    // The candidates: each centre moved on a horizontal grid within search_radius_m, turned to
+    // each heading.
+    std::vector<Eigen::Vector3d> offsets;
+    const int steps =
+        static_cast<int>(std::floor(config_.search_radius_m / config_.search_spacing_m));
+    for (int ix = -steps; ix <= steps; ++ix) {
+        for (int iy = -steps; iy <= steps; ++iy) {
+            const Eigen::Vector3d d(ix * config_.search_spacing_m, iy * config_.search_spacing_m,
+                                    0.0);
+            if (d.norm() <= config_.search_radius_m + 1e-9) offsets.push_back(d);
+        }
+    }
+    std::vector<Eigen::Isometry3d> candidates;
+    candidates.reserve(centres.size() * offsets.size() * config_.search_headings);
+    const double heading_step = 2.0 * M_PI / config_.search_headings;
+    for (const Eigen::Isometry3d& centre : centres) {
+        for (const Eigen::Vector3d& offset : offsets) {
+            for (int h = 0; h < config_.search_headings; ++h) {
+                candidates.push_back(turned(centre, h * heading_step, offset));
+            }
+        }
+    }
+    // Score: the mean over a few hundred points of max(0, 1 - |SDF| / 2 d) inside the map.
+    const std::vector<Eigen::Vector3f> sample = thinned(points, config_.search_points);
+    const std::size_t n = sample.size();
+    std::vector<Eigen::Vector3f> points_map(candidates.size() * n);
+    tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t c) {
+        const Eigen::Matrix3d R = candidates[c].linear();
+        const Eigen::Vector3d t = candidates[c].translation() - sdf_.origin_world_m;
+        for (std::size_t i = 0; i < n; ++i) {
+            points_map[c * n + i] = (R * sample[i].cast<double>() + t).cast<float>();
+        }
+    });
+    std::vector<float> sdf_m;
+    std::vector<std::uint8_t> inside;
+    sdf_.query(points_map, QueryMask::kLevel0, sdf_m, inside);
+    const double band = 2.0 * config_.inlier_distance_m;
+    std::vector<double> scores(candidates.size(), 0.0);
+    for (std::size_t c = 0; c < candidates.size(); ++c) {
+        double s = 0.0;
+        for (std::size_t i = 0; i < n; ++i) {
+            if (inside[c * n + i]) s += std::max(0.0, 1.0 - std::abs(sdf_m[c * n + i]) / band);
+        }
+        scores[c] = n == 0 ? 0.0 : s / n;
+    }
+    std::vector<std::size_t> order(candidates.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    const std::size_t best =
+        std::min<std::size_t>(order.size(), static_cast<std::size_t>(config_.search_registrations));
+    std::partial_sort(order.begin(), order.begin() + best, order.end(),
+                      [&](std::size_t a, std::size_t b) {
+                          return scores[a] != scores[b] ? scores[a] > scores[b] : a < b;
+                      });
+    Attempt chosen;
+    chosen.pose = centres.empty() ? Eigen::Isometry3d::Identity() : centres.front();
+    int iterations = 0;
+    bool any = false;
+    for (std::size_t k = 0; k < best; ++k) {
+        const Attempt attempt = recover(points, candidates[order[k]], nullptr);
+        iterations += attempt.iterations;
+        // A localised attempt beats one that is not; among equals, more points on the surface.
+        if (!any || (attempt.localized && !chosen.localized) ||
+            (attempt.localized == chosen.localized && attempt.inlier_ratio > chosen.inlier_ratio)) {
+            chosen = attempt;
+            any = true;
+        }
+    }
+    chosen.iterations = iterations;
+    chosen.candidates = static_cast<int>(candidates.size());
+    return chosen;
+}
+
+const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>& points_sensor) {
+    const auto start_time = std::chrono::steady_clock::now();
+    RegistrationPointConfig selection;
+    selection.min_range_m = config_.min_range_m;
+    selection.max_range_m = config_.max_range_m;
+    selection.voxel_size_m = config_.voxel_size_m;
+    const std::vector<Eigen::Vector3f> points =
+        thinned(select_registration_points(points_sensor, selection), config_.max_points);
+
+    LocalizeRecord record;
+    record.points = points.size();
+    const Eigen::Isometry3d predicted = prediction();
+    const bool first = records_.empty();
+    std::vector<Eigen::Isometry3d> global_centres = places_;
+    if (global_centres.empty()) global_centres.push_back(predicted);
+
+    Attempt attempt;
+    LocalizeSource source = LocalizeSource::kTracked;
+    int iterations = 0;
+    if (first && !has_initial_pose_) {
+        attempt = search(points, global_centres);
+        source = LocalizeSource::kGlobalSearch;
+    } else {
+        attempt = track(points, predicted);
+        if (!attempt.localized) {
+            iterations += attempt.iterations;
+            // The headings turn the last pose: where the motion changed, the prediction
+            // extrapolates the error (the odometry's rule, odometry_config.hpp).
+            const Eigen::Isometry3d last =
+                records_.empty() ? predicted : records_.back().T_world_sensor;
+            attempt = recover(points, predicted, &last);
+            source = LocalizeSource::kRecovered;
+        }
+        if (!attempt.localized && failures_in_a_row_ + 1 >= config_.global_search_after_failures) {
+            iterations += attempt.iterations;
+            attempt = search(points, global_centres);
+            source = LocalizeSource::kGlobalSearch;
+        }
+    }
+    iterations += attempt.iterations;
+    record.localized = attempt.localized;
+    record.source = attempt.localized ? source : LocalizeSource::kPrediction;
+    record.T_world_sensor = attempt.localized ? attempt.pose : predicted;
+    if (!attempt.localized) {
+        // Reported at the prediction that bridges the scan.
+        score(points, predicted, attempt.inlier_ratio, attempt.valid, attempt.residual_m);
+    }
+    record.valid_points = attempt.valid;
+    record.inlier_ratio = attempt.inlier_ratio;
+    record.residual_m = attempt.residual_m;
+    record.condition_number = attempt.condition_number;
+    record.status = attempt.status;
+    record.iterations = iterations;
+    record.candidates = attempt.candidates;
+    failures_in_a_row_ = record.localized ? 0 : failures_in_a_row_ + 1;
+    record.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+    records_.push_back(record);
+    return records_.back();
+}
+
+}  // namespace shine
