@@ -269,6 +269,14 @@ int run_localize(const LocalizeOptions& opt) {
     write_stream_atomically(out / "stats.json",
                             [&](std::ostream& os) { os << json.dump(2) << "\n"; });
     if (!opt.quiet) std::printf("wrote %s/{poses.txt, poses_tum.txt, stats.json}\n", out.c_str());
+    if (localized == 0) {
+        throw DataError("none of the " + std::to_string(records.size()) +
+                        " scans of DATA was localised in '" + map_file.string() +
+                        "' (their poses in " + (out / "poses.txt").string() +
+                        " are predictions only): is DATA in the mapped area? Give --initial-pose "
+                        "near the first scan, or a map folder with its trajectory (poses.txt or "
+                        "poses_refined.txt) for the search");
+    }
     return 0;
 }
 
