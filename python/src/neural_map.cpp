@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "long_call.hpp"
@@ -30,6 +31,7 @@
 #include "shine/geometry/map_frame.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
+#include "shine/mapper/map_localizer.hpp"
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
@@ -246,6 +248,41 @@ class NeuralMap {
         const auto rows = static_cast<py::ssize_t>(n);
         return py::make_tuple(take_vector(std::move(values), {rows}),
                               take_vector(std::move(gradients), {rows, 3}));
+    }
+
+    py::tuple localize(const py::handle& points, const py::object& initial_pose) {
+        const std::vector<Eigen::Vector3f> points_sensor = points3f(points, "points");
+        const NeuralSdf& sdf = require_sdf("localize()");
+        std::optional<Eigen::Isometry3d> start;
+        if (!initial_pose.is_none()) start = pose_from_array(initial_pose, "initial_pose");
+        LocalizeRecord record;
+        {
+            py::gil_scoped_release release;
+            const auto limit = limit_threads(config_.threads);
+            // A new track: at an initial pose, after the map changed, or for the first call.
+            if (start || !localizer_ || localizer_sdf_ != &sdf || localizer_scans_ != scans_ ||
+                localizer_iterations_ != iterations_done()) {
+                localizer_ = std::make_unique<MapLocalizer>(sdf, LocalizeConfig{});
+                localizer_sdf_ = &sdf;
+                localizer_scans_ = scans_;
+                localizer_iterations_ = iterations_done();
+                if (start) localizer_->set_initial_pose(*start);
+            }
+            record = localizer_->localize(points_sensor);
+        }
+        py::dict info;
+        info["localized"] = record.localized;
+        info["source"] = to_string(record.source);
+        info["points"] = record.points;
+        info["valid_points"] = record.valid_points;
+        info["inlier_ratio"] = record.inlier_ratio;
+        info["residual_m"] = record.residual_m;
+        info["condition_number"] = record.condition_number;
+        info["status"] = to_string(record.status);
+        info["iterations"] = record.iterations;
+        info["candidates"] = record.candidates;
+        info["seconds"] = record.seconds;
+        return py::make_tuple(pose_to_array(record.T_world_sensor), info);
     }
 
     py::tuple extract_triangle_mesh(const py::object& voxel_size_m) const {
@@ -465,6 +502,11 @@ class NeuralMap {
     std::unique_ptr<NeuralSdf> loaded_;
     std::size_t scans_ = 0;
     bool warned_times_ = false;
+    /// localize()'s track, and the map state it was made for.
+    std::unique_ptr<MapLocalizer> localizer_;
+    const NeuralSdf* localizer_sdf_ = nullptr;
+    std::size_t localizer_scans_ = 0;
+    int localizer_iterations_ = 0;
 };
 
 }  // namespace
@@ -539,6 +581,22 @@ Signed distance and its gradient at world-frame points.
 Returns:
     (values (N,) float32 metres, positive in free space; gradients (N, 3) float32), NaN where no
     level of the map covers the point.
+)doc")
+        .def("localize", &NeuralMap::localize, py::arg("points"),
+             py::arg("initial_pose") = py::none(), R"doc(
+Localises a scan in this map without changing it (``shine localize``, docs/localize.md).
+
+Successive calls track: each scan starts from the constant-velocity prediction of the poses
+before it; a failed scan is recovered by ICP against the map's surface and headings, then by a
+search around the prediction. ``initial_pose`` starts a new track there; the first call without
+one searches around the world origin.
+Args:
+    points: (N, 3) sensor-frame points.
+    initial_pose: a 4x4 (or 3x4) T_world_sensor to start from, or None.
+Returns:
+    (pose (4, 4) float64 T_world_sensor, info dict: localized, source, points, valid_points,
+    inlier_ratio, residual_m, condition_number, status, iterations, candidates, seconds). A scan
+    that is not localised returns the prediction with localized False.
 )doc")
         .def("extract_triangle_mesh", &NeuralMap::extract_triangle_mesh,
              py::arg("voxel_size_m") = py::none(), R"doc(
