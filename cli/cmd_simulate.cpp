@@ -316,6 +316,10 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
                     "standard deviation of Gaussian range noise, m (>= 0)")
         ->check(CLI::Range(0.0, 10.0))
         ->capture_default_str();
+    cmd->add_option("--lane-offset-m", c.trajectory.lane_offset_m,
+                    "drive this far left (+) or right (-) of the street's centre line, m: a "
+                    "second drive in another lane")
+        ->capture_default_str();
     CLI::Option* frame_spacing =
         cmd->add_option("--frame-spacing-m,--scan-spacing-m", c.trajectory.frame_spacing_m,
                         "distance driven between scans, m (1.6 with --route-km)")

@@ -145,6 +145,22 @@ TEST(LidarSimulator, TrajectoryIsSmoothAndRotates) {
               shine::sim::make_drive_trajectory(config, 50, 2)[10].translation().y());
 }
 
+TEST(LidarSimulator, ALaneOffsetMovesTheDriveSidewaysOnly) {
+    shine::sim::DriveTrajectoryConfig config;
+    const auto centre = shine::sim::make_drive_trajectory(config, 20, 4);
+    config.lane_offset_m = -3.0;
+    const auto right = shine::sim::make_drive_trajectory(config, 20, 4);
+    for (std::size_t i = 0; i < centre.size(); ++i) {
+        const Eigen::Vector3d d = right[i].translation() - centre[i].translation();
+        EXPECT_NEAR(d.x(), 0.0, 1e-12);
+        EXPECT_NEAR(d.y(), -3.0, 1e-12);
+        EXPECT_NEAR(d.z(), 0.0, 1e-12);
+        EXPECT_TRUE(right[i].linear().isApprox(centre[i].linear(), 1e-12));
+    }
+    config.lane_offset_m = 3.5;  // 3.5 + 1 m of weave: off the road
+    EXPECT_THROW(shine::sim::validate(config), shine::ConfigError);
+}
+
 TEST(LidarSimulator, SequenceFilesReadBackAndMarkObservedTriangles) {
     const fs::path dir = fs::path(SHINE_TEST_TMP_DIR) / "sim_sequence";
     fs::remove_all(dir);

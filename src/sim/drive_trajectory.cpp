@@ -20,6 +20,8 @@ void validate(const DriveTrajectoryConfig& c) {
             c.sensor_height_m, "must be in (0, 100]");
     require(c.weave_amplitude_m >= 0.0 && c.weave_amplitude_m <= 3.0, "weave_amplitude_m",
             c.weave_amplitude_m, "must be in [0, 3] (the car stays on the road)");
+    require(std::abs(c.lane_offset_m) + c.weave_amplitude_m <= 4.0, "lane_offset_m",
+            c.lane_offset_m, "must keep |offset| + weave amplitude within 4 m (the road)");
     require(c.weave_wavelength_m >= 5.0, "weave_wavelength_m", c.weave_wavelength_m,
             "must be >= 5");
     require(c.pitch_amplitude_deg >= 0.0 && c.pitch_amplitude_deg <= 10.0, "pitch_amplitude_deg",
@@ -65,7 +67,8 @@ Eigen::Isometry3d pose_at(const DriveTrajectoryConfig& config, const DrivePhases
                                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
                                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
                                   .toRotationMatrix();
-    T_world_sensor.translation() = Eigen::Vector3d(x, y, config.sensor_height_m);
+    T_world_sensor.translation() =
+        Eigen::Vector3d(x, config.lane_offset_m + y, config.sensor_height_m);
     return T_world_sensor;
 }
 
