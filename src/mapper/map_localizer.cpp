@@ -66,6 +66,7 @@ void validate(const LocalizeConfig& c) {
             "must be within [0, 1]");
     require(c.search_radius_m >= 0.0, "search_radius_m", "must be >= 0");
     require(c.search_spacing_m > 0.0, "search_spacing_m", "must be positive");
+    require(c.lost_search_radius_m >= 0.0, "lost_search_radius_m", "must be >= 0");
     require(c.search_headings >= 1, "search_headings", "must be >= 1");
     require(c.search_points >= 10, "search_points", "must be >= 10");
     require(c.search_registrations >= 1, "search_registrations", "must be >= 1");
@@ -186,8 +187,11 @@ MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& 
         }
     }
     if (headings_from && best_ratio < config_.icp_min_inlier_ratio) {
+        // Nearest headings first (0, +1, -1, +2, ... steps); the first that puts enough points
+        // on a plane ends the loop.
         const double step = 2.0 * M_PI / config_.search_headings;
-        for (int h = 0; h < config_.search_headings; ++h) {
+        for (int k = 0; k < config_.search_headings; ++k) {
+            const int h = (k % 2 == 0 ? 1 : -1) * ((k + 1) / 2);
             double ratio = 0.0;
             const Eigen::Isometry3d pose =
                 run_icp(turned(*headings_from, h * step, Eigen::Vector3d::Zero()), false, ratio);
@@ -195,6 +199,7 @@ MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& 
                 best_ratio = ratio;
                 best = pose;
             }
+            if (best_ratio >= config_.icp_min_inlier_ratio) break;
         }
     }
     Attempt attempt = track(points, best);
@@ -276,17 +281,17 @@ MapLocalizer::Attempt MapLocalizer::track(const std::vector<Eigen::Vector3f>& po
 }
 
 MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& points,
-                                           const std::vector<Eigen::Isometry3d>& centres) const {
+                                           const std::vector<Eigen::Isometry3d>& centres,
+                                           double radius_m) const {
     // The candidates: each centre moved on a horizontal grid within search_radius_m, turned to
     // each heading.
     std::vector<Eigen::Vector3d> offsets;
-    const int steps =
-        static_cast<int>(std::floor(config_.search_radius_m / config_.search_spacing_m));
+    const int steps = static_cast<int>(std::floor(radius_m / config_.search_spacing_m));
     for (int ix = -steps; ix <= steps; ++ix) {
         for (int iy = -steps; iy <= steps; ++iy) {
             const Eigen::Vector3d d(ix * config_.search_spacing_m, iy * config_.search_spacing_m,
                                     0.0);
-            if (d.norm() <= config_.search_radius_m + 1e-9) offsets.push_back(d);
+            if (d.norm() <= radius_m + 1e-9) offsets.push_back(d);
         }
     }
     std::vector<Eigen::Isometry3d> candidates;
@@ -362,14 +367,28 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     record.points = points.size();
     const Eigen::Isometry3d predicted = prediction();
     const bool first = records_.empty();
+    // Without the map's trajectory the search looks around the prediction and the last
+    // localised pose, farther (lost_search_radius_m).
     std::vector<Eigen::Isometry3d> global_centres = places_;
-    if (global_centres.empty()) global_centres.push_back(predicted);
+    double radius_m = config_.search_radius_m;
+    if (global_centres.empty()) {
+        global_centres.push_back(predicted);
+        for (auto r = records_.rbegin(); r != records_.rend(); ++r) {
+            if (!r->localized) continue;
+            if ((r->T_world_sensor.translation() - predicted.translation()).norm() >
+                config_.search_spacing_m) {
+                global_centres.push_back(r->T_world_sensor);
+            }
+            break;
+        }
+        radius_m = std::max(radius_m, config_.lost_search_radius_m);
+    }
 
     Attempt attempt;
     LocalizeSource source = LocalizeSource::kTracked;
     int iterations = 0;
     if (first && !has_initial_pose_) {
-        attempt = search(points, global_centres);
+        attempt = search(points, global_centres, radius_m);
         source = LocalizeSource::kGlobalSearch;
     } else {
         attempt = track(points, predicted);
@@ -384,7 +403,7 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
         }
         if (!attempt.localized && failures_in_a_row_ + 1 >= config_.global_search_after_failures) {
             iterations += attempt.iterations;
-            attempt = search(points, global_centres);
+            attempt = search(points, global_centres, radius_m);
             source = LocalizeSource::kGlobalSearch;
         }
     }

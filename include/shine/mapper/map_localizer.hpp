@@ -15,15 +15,17 @@
 //      surface (its zero level set baked at surface_voxel_m, mesh vertices with their normals),
 //      coarse to fine (icp_coarse_correspondence_m, then icp_correspondence_m) from the
 //      prediction and, when ICP leaves fewer than icp_min_inlier_ratio of the points on a plane,
-//      from the last pose turned to each of search_headings headings about the world's vertical
-//      axis; the best start is then registered to the SDF as in step 2;
+//      from the last pose turned to search_headings headings about the world's vertical axis
+//      (nearest first, until one puts enough points on a plane); the best start is then
+//      registered to the SDF as in step 2;
 //   5. a scan that still fails takes the prediction (reported, not localised); after
 //      global_search_after_failures such scans in a row (and for the first scan when no initial
 //      pose is given) a global search runs: every place of `places` (the map's trajectory,
 //      thinned to place_spacing_m) moved on a horizontal grid (search_radius_m,
 //      search_spacing_m) and turned to each heading is scored by the share of a few hundred
 //      points near the surface, and the best search_registrations candidates are registered by
-//      ICP and then the SDF.
+//      ICP and then the SDF. Without the map's trajectory the search's centres are the
+//      prediction and the last localised pose, within lost_search_radius_m.
 // The SDF is metric only near surfaces (a narrow basin: fast and exact); the surface points'
 // ICP finds the basin from metres away, as the odometry's ICP does for young maps.
 // Deterministic: the registration sums and SDF queries are the same bits for any thread count.
@@ -70,9 +72,11 @@ struct LocalizeConfig {
     /// Step 5: the global search around the map's places.
     double search_radius_m = 1.0;   ///< horizontal offsets up to this, on a grid
     double search_spacing_m = 1.0;  ///< of this spacing
-    int search_points = 300;        ///< points that score a candidate
-    int search_registrations = 8;   ///< best-scored candidates registered
-    double place_spacing_m = 1.0;   ///< the map's trajectory thinned to places this far apart
+    /// Without the map\'s trajectory: around the prediction and the last localised pose, this far.
+    double lost_search_radius_m = 4.0;
+    int search_points = 300;       ///< points that score a candidate
+    int search_registrations = 8;  ///< best-scored candidates registered
+    double place_spacing_m = 1.0;  ///< the map's trajectory thinned to places this far apart
     int global_search_after_failures = 1;
 };
 
@@ -138,7 +142,7 @@ class MapLocalizer {
     Attempt recover(const std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& start,
                     const Eigen::Isometry3d* headings_from) const;
     Attempt search(const std::vector<Eigen::Vector3f>& points,
-                   const std::vector<Eigen::Isometry3d>& centres) const;
+                   const std::vector<Eigen::Isometry3d>& centres, double radius_m) const;
     /// Share of points within inlier_distance_m of the surface at `pose`, valid count and the
     /// median |SDF| of the valid ones.
     void score(const std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& pose,
