@@ -293,4 +293,17 @@ TEST(DynamicObjectDefaults, OffOnTheObjectSceneUnlessSetAndOnElsewhere) {
     EXPECT_EQ(finalized("map: {leaf_size_m: 0.1}\n").dynamic.objects.min_dynamic_share, outdoor);
 }
 
+TEST(PoseRefinementDefaults, OffOnTheObjectSceneUnlessSetAndOnElsewhere) {
+    // Measured to lose on the object scene (exact poses moved by up to 2.5 mm, 21.9 points of
+    // F-score at 1 mm: docs/object_scale.md) and to win outdoors and indoors.
+    const int rounds = PoseRefinementConfig{}.rounds;
+    EXPECT_GT(rounds, 0);
+    EXPECT_EQ(finalized("map: {scene: object}\n").refine.rounds, 0);
+    EXPECT_EQ(finalized("map: {leaf_size_m: 0.003}\n").refine.rounds, 0);
+    EXPECT_EQ(finalized("map: {scene: object}\nrefine: {rounds: 2}\n").refine.rounds, 2);
+    EXPECT_EQ(finalized("map: {scene: outdoor}\n").refine.rounds, rounds);
+    EXPECT_EQ(finalized("map: {scene: indoor}\n").refine.rounds, rounds);
+    EXPECT_EQ(finalized("map: {leaf_size_m: 0.1}\n").refine.rounds, rounds);
+}
+
 }  // namespace shine

@@ -411,6 +411,12 @@ void apply_scale_free_defaults(MapperConfig& c) {
     if (c.resolved_scene() == ScenePreset::kObject && !c.is_set("dynamic.motion")) {
         c.dynamic.motion.enabled = false;
     }
+    // Pose refinement (pose_refinement.hpp) is measured to win on streets and the real walk and
+    // drive; on the object scene, whose simulated poses are exact, its rounds moved them by up to
+    // 2.5 mm and cost 21.9 points of F-score at 1 mm (docs/object_scale.md).
+    if (c.resolved_scene() == ScenePreset::kObject && !c.is_set("refine.rounds")) {
+        c.refine.rounds = 0;
+    }
     // Outdoors a leaf finer than 0.2 m keeps the coarse levels: one more level per halving of
     // the leaf, so the coarsest cell stays 0.8 m (4 levels at 0.1 m). Measured on real scans
     // and the streets at 0.1 m, in both modes (docs/heldout.md); not measured indoors or on
