@@ -310,7 +310,10 @@ const RegisterCommand kLocalizeCommand(17, [](CLI::App& app, Action& action) {
                     "headings a search tries, 360/N degrees apart")
         ->capture_default_str();
     cmd->add_option("--max-points", opt->config.max_points,
-                    "registration points a scan at most (time grows with them)")
+                    "registration points a scan at most when tracking (time grows with them)")
+        ->capture_default_str();
+    cmd->add_option("--recovery-max-points", opt->config.recovery_max_points,
+                    "registration points a scan at most when recovering or searching")
         ->capture_default_str();
     cmd->add_option("--min-inlier-ratio", opt->config.min_inlier_ratio,
                     "share of a scan's points near the map's surface for it to count as "

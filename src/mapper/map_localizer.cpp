@@ -54,6 +54,8 @@ void validate(const LocalizeConfig& c) {
         require(s > 0.0, "kernel_scales_m", "must be positive");
     }
     require(c.max_iterations >= 1, "max_iterations", "must be >= 1");
+    require(c.max_points >= 0 && c.recovery_max_points >= 0, "max_points",
+            "and recovery_max_points must be >= 0 (0: every selected point)");
     require(c.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
     require(c.inlier_distance_m > 0.0, "inlier_distance_m", "must be positive");
     require(c.min_inlier_ratio >= 0.0 && c.min_inlier_ratio <= 1.0, "min_inlier_ratio",
@@ -360,8 +362,12 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     selection.min_range_m = config_.min_range_m;
     selection.max_range_m = config_.max_range_m;
     selection.voxel_size_m = config_.voxel_size_m;
-    const std::vector<Eigen::Vector3f> points =
-        thinned(select_registration_points(points_sensor, selection), config_.max_points);
+    const std::vector<Eigen::Vector3f> selected =
+        select_registration_points(points_sensor, selection);
+    // Tracking with few points is fast; the recovery and the search, whose starts are far from
+    // the pose, need more to tell the right minimum from a wrong one.
+    const std::vector<Eigen::Vector3f> points = thinned(selected, config_.max_points);
+    const std::vector<Eigen::Vector3f> wide = thinned(selected, config_.recovery_max_points);
 
     LocalizeRecord record;
     record.points = points.size();
@@ -388,8 +394,9 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     LocalizeSource source = LocalizeSource::kTracked;
     int iterations = 0;
     if (first && !has_initial_pose_) {
-        attempt = search(points, global_centres, radius_m);
+        attempt = search(wide, global_centres, radius_m);
         source = LocalizeSource::kGlobalSearch;
+        record.points = wide.size();
     } else {
         attempt = track(points, predicted);
         if (!attempt.localized) {
@@ -398,12 +405,13 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
             // extrapolates the error (the odometry's rule, odometry_config.hpp).
             const Eigen::Isometry3d last =
                 records_.empty() ? predicted : records_.back().T_world_sensor;
-            attempt = recover(points, predicted, &last);
+            attempt = recover(wide, predicted, &last);
             source = LocalizeSource::kRecovered;
+            record.points = wide.size();
         }
         if (!attempt.localized && failures_in_a_row_ + 1 >= config_.global_search_after_failures) {
             iterations += attempt.iterations;
-            attempt = search(points, global_centres, radius_m);
+            attempt = search(wide, global_centres, radius_m);
             source = LocalizeSource::kGlobalSearch;
         }
     }
@@ -413,7 +421,8 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     record.T_world_sensor = attempt.localized ? attempt.pose : predicted;
     if (!attempt.localized) {
         // Reported at the prediction that bridges the scan.
-        score(points, predicted, attempt.inlier_ratio, attempt.valid, attempt.residual_m);
+        score(wide, predicted, attempt.inlier_ratio, attempt.valid, attempt.residual_m);
+        record.points = wide.size();
     }
     record.valid_points = attempt.valid;
     record.inlier_ratio = attempt.inlier_ratio;

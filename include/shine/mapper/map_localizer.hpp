@@ -4,7 +4,8 @@
 //
 // Per scan:
 //   1. the registration points: range window, one point per voxel, at most max_points of them
-//      (a deterministic stride: registration_points.hpp);
+//      for tracking and recovery_max_points for steps 4-5 (a deterministic stride:
+//      registration_points.hpp);
 //   2. tracking: registration to the SDF coarse to fine (kernel_scales_m) from the
 //      constant-velocity prediction of the last two poses (the first scan: the initial pose);
 //   3. the result counts as localised when the solver accepts it (converged, well conditioned)
@@ -52,7 +53,9 @@ struct LocalizeConfig {
     double max_range_m = 60.0;
     /// At most this many registration points (every k-th of the voxel selection): time per
     /// scan grows with the points.
-    int max_points = 1500;
+    int max_points = 1000;
+    /// The recovery and the search (steps 4-5) take up to this many of the same points.
+    int recovery_max_points = 2000;
     /// Geman-McClure kernel scales of the coarse-to-fine stages, m (decreasing).
     std::vector<double> kernel_scales_m = {0.2, 0.05};
     int max_iterations = 20;  ///< per stage
