@@ -3,6 +3,7 @@
 // map file untouched; a start beyond the search's reach reported, not accepted; bad input named.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -132,6 +133,37 @@ TEST(LocalizeCli, AStartBeyondTheSearchsReachIsReportedNotAccepted) {
         EXPECT_FALSE(scan.at("localized").get<bool>());
         EXPECT_EQ(scan.at("source"), "prediction");
     }
+}
+
+TEST(LocalizeCli, AScanOfNoiseIsBridgedAndTrackingResumesAfterIt) {
+    // The street with odd scan 5 replaced by 5000 points of uniform noise (a LiDAR fault).
+    const fs::path faulty = test_dir() / "faulty_street";
+    fs::remove_all(faulty);
+    fs::copy(street(), faulty, fs::copy_options::recursive);
+    {
+        std::ofstream bin(faulty / "velodyne" / "000005.bin", std::ios::binary | std::ios::trunc);
+        std::uint64_t state = 12345;
+        for (int i = 0; i < 5000 * 4; ++i) {
+            state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+            const float v = static_cast<float>((state >> 40) % 60000) / 1000.0f - 30.0f;
+            bin.write(reinterpret_cast<const char*>(&v), sizeof(v));
+        }
+    }
+    const fs::path out = test_dir() / "faulty";
+    fs::remove_all(out);
+    const CliResult r =
+        run("localize '" + map_dir().string() + "' '" + faulty.string() + "' -o '" + out.string() +
+            "' --first-frame 1 --frame-step 2 --threads 2 --initial-pose '" +
+            pose_file(1, "first_faulty.txt").string() + "'");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("scan 2 (000005.bin): not localised"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("scan 3: localised again"), std::string::npos) << r.output;
+    const nlohmann::json stats = read_json(out / "stats.json");
+    EXPECT_EQ(stats.at("localize").at("localized"), 5);
+    const nlohmann::json& scans = stats.at("localize").at("per_scan");
+    EXPECT_FALSE(scans[2].at("localized").get<bool>());
+    EXPECT_EQ(scans[2].at("source"), "prediction");
+    for (const int i : {0, 1, 3, 4, 5}) EXPECT_TRUE(scans[i].at("localized").get<bool>()) << i;
 }
 
 TEST(LocalizeCli, BadInputGetsAClearError) {
