@@ -12,6 +12,7 @@
 
 #include "cli_common.hpp"
 #include "command_registry.hpp"
+#include "map_from.hpp"
 #include "product_stats.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
@@ -62,6 +63,7 @@ struct MapOptions {
     int mesh_every = -1;
     double max_map_mb = -1.0;  ///< < 0: the configuration's map.max_map_mb
     bool profile = false;
+    std::string from;                  ///< --from: the saved map (folder or map.vdb) to continue
     std::string resume_dir;            ///< continue the interrupted run in this output directory
     double checkpoint_minutes = 10.0;  ///< periodic checkpoints (0: only on Ctrl-C)
     int interrupt_after = 0;           ///< tests: raise SIGINT at the N-th step (hidden option)
@@ -392,14 +394,34 @@ MapperConfig config_from_options(const MapOptions& opt) {
     return config;
 }
 
+/// With --from: the mode is incremental, and --mode batch is refused.
+MapOptions with_continue_mode(const MapOptions& given) {
+    if (given.from.empty()) return given;
+    const bool mode_given =
+        std::find(given.given.begin(), given.given.end(), "--mode") != given.given.end();
+    if (mode_given && given.mode != "incremental") {
+        throw ConfigError(
+            "--from continues a saved map in incremental mode (the old map's "
+            "features held by the importance weights, its decoder frozen); "
+            "--mode " +
+            given.mode +
+            " cannot continue a map: drop --mode, or map all the data anew in batch "
+            "mode");
+    }
+    MapOptions opt = given;
+    opt.mode = "incremental";
+    return opt;
+}
+
 int run_map(const MapOptions& given_options) {
     const auto start_total = std::chrono::steady_clock::now();
     const bool resuming = !given_options.resume_dir.empty();
     MapperConfig config;
-    const MapOptions opt =
-        resuming ? options_from_checkpoint(given_options, config) : given_options;
+    const MapOptions opt = resuming ? options_from_checkpoint(given_options, config)
+                                    : with_continue_mode(given_options);
     if (!resuming) config = config_from_options(opt);
     Progress::set_globally_enabled(!opt.quiet);
+    const bool continuing = !opt.from.empty();
     const bool incremental = opt.mode == "incremental";
     if (opt.mode != "batch" && !incremental) {
         throw ConfigError("--mode must be 'batch' or 'incremental', got '" + opt.mode + "'");
@@ -419,8 +441,8 @@ int run_map(const MapOptions& given_options) {
     seq_options.first_frame = opt.first_frame;
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
-    const bool estimate_requested = opt.poses_path == kEstimatePoses;
-    if (!estimate_requested) seq_options.poses_path = opt.poses_path;
+    const bool estimate_option = opt.poses_path == kEstimatePoses;
+    if (!estimate_option) seq_options.poses_path = opt.poses_path;
     seq_options.topic = opt.topic;
     seq_options.poses = PoseFileUse::kIfPresent;
     ScanSequence selected = ScanSequence::open(data, seq_options);
@@ -429,10 +451,38 @@ int run_map(const MapOptions& given_options) {
     // to the skewed scans, deskewing lost points on the real drive, and with estimated poses it
     // lost 0.3-0.9 points: docs/field.md).
     if (config.deskew.azimuth_times != DeskewMode::kAuto ||
-        (opt.mode == "batch" && config.refine.rounds > 0 && !estimate_requested &&
+        (opt.mode == "batch" && config.refine.rounds > 0 && !estimate_option &&
          selected.has_poses())) {
         selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
     }
+    // --from: the old map, read before anything is written (a missing or damaged map is named
+    // at once). Scans without poses (or with --poses estimate) are localised in it first and
+    // mapped at those poses; with poses of their own, those are in its world frame.
+    std::optional<LoadedMap> old_map;
+    fs::path old_map_file;
+    nlohmann::json from_json;
+    if (continuing) {
+        old_map_file = continued_map_file(opt.from);
+        old_map.emplace(load_neural_map(old_map_file));
+        from_json = {{"map", fs::absolute(old_map_file).string()},
+                     {"corners", old_map->sdf.octree.num_corners()},
+                     {"poses", "data"}};
+        if (estimate_option || !selected.has_poses()) {
+            if (opt.holdout_every > 0) {
+                throw ConfigError(
+                    "--holdout-every scores the map on held-out scans at their poses, but with "
+                    "--from and no poses of their own the scans are localised and mapped: give a "
+                    "pose file, or map without --holdout-every");
+            }
+            nlohmann::json localize_json;
+            selected = localize_in_continued_map(selected, old_map->sdf, old_map_file, opt.quiet,
+                                                 localize_json);
+            from_json["poses"] = "localised";
+            from_json["localize"] = localize_json;
+        }
+    }
+    // --poses estimate: the odometry, except when continuing a map (localised in it above).
+    const bool estimate_requested = estimate_option && !continuing;
     if (!selected.has_poses() && !incremental && !estimate_requested &&
         !config.odometry.estimate_poses) {
         const std::string estimate_hint =
@@ -505,8 +555,10 @@ int run_map(const MapOptions& given_options) {
     const bool out_existed = fs::exists(out, exists_ec);
     ensure_directory(out);
 
-    // Ctrl-C / SIGTERM finish the current step and write a checkpoint (checkpoint.hpp).
-    const StopOnSignal stop_on_signal;
+    // Ctrl-C / SIGTERM finish the current step and write a checkpoint (checkpoint.hpp); a run
+    // that continues a map writes none (docs/continue.md), and Ctrl-C ends it.
+    std::optional<StopOnSignal> stop_on_signal;
+    if (!continuing) stop_on_signal.emplace();
     RunControl control;
     control.checkpoint_path = checkpoint_file(out);
     control.run_description = describe_run(opt, data, config).dump(2);
@@ -528,7 +580,13 @@ int run_map(const MapOptions& given_options) {
     // checkpoint of its own) and goes on from the batch training's checkpoint.
     std::optional<IncrementalSequenceMap> odometry_run;
     try {
-        if (incremental) {
+        if (incremental && continuing) {
+            MapToContinue from;
+            from.file = old_map_file;
+            from.sdf = &old_map->sdf;
+            incremental_map = map_sequence_incremental(config, sequence, out, {}, nullptr, &from);
+            old_map.reset();
+        } else if (incremental) {
             incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
         } else if (config.odometry.estimate_poses) {
             // Only its poses are used: its map is not consolidated.
@@ -618,6 +676,10 @@ int run_map(const MapOptions& given_options) {
     json["data"] = data.string();
     json["mode"] = opt.mode;
     json["resumed"] = resuming;
+    if (continuing) {
+        from_json["new_corners"] = sdf.octree.num_corners() - incremental_map->mapper->start_rows();
+        json["from"] = from_json;
+    }
     json["frames"] = stats.frames;
     json["rays"] = stats.rays;
     json["threads"] = config.threads;
@@ -816,6 +878,13 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
     cmd->add_flag("--profile", opt->profile,
                   "Print seconds per stage (per-frame medians and run totals; also in "
                   "stats.json \"profile\")");
+    cmd->add_option("--from", opt->from,
+                    "Continue this saved map (a `shine map` output folder or its map.vdb) with "
+                    "DATA's scans, in incremental mode: its features (held by the importance "
+                    "weights), decoder (frozen) and world frame; DATA's poses are in that frame, "
+                    "or without poses each scan is localised in the map first (scans not "
+                    "localised are skipped). Needs the settings the map was made with "
+                    "(docs/continue.md)");
     cmd->add_option("--resume", opt->resume_dir,
                     "Continue the run stopped (Ctrl-C, SIGTERM) with its checkpoint in this "
                     "output directory, to the result the uninterrupted run gives; its settings "

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <sstream>
 #include <type_traits>
 #include <utility>
 
@@ -208,6 +209,102 @@ IncrementalMapper::IncrementalMapper(const MapperConfig& config) : config_(confi
 }
 
 IncrementalMapper::~IncrementalMapper() = default;
+
+void IncrementalMapper::start_from(NeuralSdf&& old, const std::string& source) {
+    require_training_state("start_from");
+    if (!frames_.empty() || origin_set_) {
+        throw Error("IncrementalMapper::start_from after a scan: it starts an empty mapper only");
+    }
+    // The settings that decide the table's layout and the decoder's input: a map that differs in
+    // any of them cannot be read through this run's configuration.
+    const FeatureOctreeConfig& had = old.octree.config();
+    const FeatureOctreeConfig& want = config_.octree;
+    const auto refuse = [&](const std::string& key, const std::string& had_value,
+                            const std::string& want_value) {
+        throw ConfigError("cannot continue map '" + source + "': it was made with " + key + " " +
+                          had_value + ", this run has " + want_value +
+                          "; continue it with the settings it was made with (the same -c CONFIG "
+                          "and options), or map the new data into a new map");
+    };
+    const auto number = [](double value) {
+        std::ostringstream text;
+        text << value;
+        return text.str();
+    };
+    if (std::abs(had.leaf_size_m - want.leaf_size_m) > 1e-9 * want.leaf_size_m) {
+        refuse("map.leaf_size_m", number(had.leaf_size_m) + " m", number(want.leaf_size_m) + " m");
+    }
+    if (had.num_levels != want.num_levels) {
+        refuse("map.num_levels", number(had.num_levels), number(want.num_levels));
+    }
+    if (had.feature_dim != want.feature_dim) {
+        refuse("map.feature_dim", number(had.feature_dim), number(want.feature_dim));
+    }
+    if (old.octree.feature_precision() != want.feature_precision) {
+        refuse("map.feature_precision", to_string(old.octree.feature_precision()),
+               to_string(want.feature_precision));
+    }
+    if (had.interpolation != want.interpolation) {
+        refuse("map.interpolation", to_string(had.interpolation), to_string(want.interpolation));
+    }
+    const DecoderConfig& decoder = old.decoder.config();
+    if (decoder.input_dim != config_.decoder.input_dim ||
+        decoder.hidden_dims != config_.decoder.hidden_dims) {
+        refuse("decoder.hidden_dims",
+               "(a " + shape_string(decoder.input_dim, decoder.hidden_dims) + " decoder)",
+               "a " + shape_string(config_.decoder.input_dim, config_.decoder.hidden_dims) +
+                   " decoder");
+    }
+    const auto point = [&](const Eigen::Vector3d& p) {
+        return "[" + number(p.x()) + ", " + number(p.y()) + ", " + number(p.z()) + "] m";
+    };
+    if (config_.origin_world_m.size() == 3) {
+        const Eigen::Vector3d origin(config_.origin_world_m[0], config_.origin_world_m[1],
+                                     config_.origin_world_m[2]);
+        if ((origin - old.origin_world_m).norm() > 1e-6) {
+            refuse("map.origin_world_m", point(old.origin_world_m), point(origin));
+        }
+    }
+    *sdf_ = std::move(old);
+    origin_set_ = true;
+    // The old map's decoder, frozen: a decoder that moved would change the old part everywhere.
+    config_.incremental.decoder_weights = source;
+    config_.trainer.train_decoder = false;
+    trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
+    // Every old row at the cap Omega_m: the old scans are gone, so their converged rows are held
+    // as strongly as the regulariser holds any row (Eq. (5)); rows added later start at 0.
+    importance_ = ImportanceWeights(config_.incremental.importance, config_.octree.feature_dim);
+    start_rows_ = sdf_->octree.num_corners();
+    const FeatureTable& table = sdf_->octree.features();
+    const auto dim = static_cast<std::size_t>(config_.octree.feature_dim);
+    start_features_.resize(start_rows_ * dim);
+    for (std::size_t row = 0; row < start_rows_; ++row) {
+        table.get_row(row, start_features_.data() + row * dim);
+    }
+    if (importance_.enabled()) {
+        trainer_->enable_anchors();
+        importance_ = importance_held_old_rows();
+    }
+}
+
+void IncrementalMapper::restore_old_rows() {
+    if (start_rows_ == 0) return;
+    FeatureTable& table = sdf_->octree.features();
+    const auto dim = static_cast<std::size_t>(config_.octree.feature_dim);
+    tbb::parallel_for(std::size_t{0}, start_rows_, [&](std::size_t row) {
+        table.set_row(row, start_features_.data() + row * dim);
+    });
+}
+
+ImportanceWeights IncrementalMapper::importance_held_old_rows() const {
+    ImportanceWeights weights(config_.incremental.importance, config_.octree.feature_dim);
+    weights.resize(sdf_->octree.num_corners());
+    std::vector<std::int32_t> rows(start_rows_);
+    for (std::size_t i = 0; i < start_rows_; ++i) rows[i] = static_cast<std::int32_t>(i);
+    const std::vector<float> cap(start_rows_, weights.config().importance_cap);
+    weights.update_importance_rows(rows, cap, 1.0f);
+    return weights;
+}
 
 void IncrementalMapper::preprocess_and_allocate(const Scan& scan, IncrementalFrameStats& frame) {
     require_training_state("add_scan/replay_scan");
@@ -567,6 +664,7 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     // takes new anchors). On the streets this scores 0.1-0.2 points above carrying them on.
     trainer_->begin_scan();
     trainer_->release_inactive_state(1);
+    restore_old_rows();
     trainer_->set_surface_band_m(consolidation_band_m_);
     // As many rays per step as the scans' steps, with more free-space samples on each.
     const SamplingConfig& scans_sampling = config_.sampling;
@@ -579,12 +677,20 @@ const ConsolidationStats& IncrementalMapper::consolidate(
                                               consolidation_.batch_size);
     const float lr0 = config_.incremental.consolidation_learning_rate;
     const double final_ratio = config_.final_learning_rate_ratio;
+    // A continued map (start_from): the kept scans are the new drive's only, and the rows they
+    // share with the old part (the coarse levels above all) would otherwise be fitted to them
+    // alone. The old rows stay at the cap, anchored at their saved values (restored above); the
+    // new rows are free, as in a consolidation of a map of its own.
+    ImportanceWeights old_rows;
+    if (start_rows_ > 0 && importance_.enabled()) old_rows = importance_held_old_rows();
+    const ImportanceWeights* regularizer = old_rows.num_rows() > 0 ? &old_rows : nullptr;
     TrainStepStats last;
     for (int it = 0; it < steps; ++it) {
         const double ratio = cosine_decay_ratio(it, steps, final_ratio);
         trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
-        // No regulariser and no focus: every kept scan weighs the same, as in batch mode.
-        last = trainer_->step(rays, ray_begin, rays.num_rays(), iteration_++);
+        // No focus: every kept scan weighs the same, as in batch mode; no regulariser but the
+        // old map's above.
+        last = trainer_->step(rays, ray_begin, rays.num_rays(), iteration_++, regularizer);
         if (progress) progress(it + 1, steps);
     }
     trainer_->set_surface_band_m(config_.sampling.surface_band_m);
@@ -698,6 +804,7 @@ void IncrementalMapper::release_training_state() {
     if (!trainer_) return;
     released_state_bytes_ = state_bytes();
     trainer_.reset();
+    start_features_ = {};
     importance_ = ImportanceWeights();
     window_ = {};
     window_members_ = {};
@@ -724,6 +831,12 @@ void IncrementalMapper::require_training_state(const char* what) const {
 
 void IncrementalMapper::save_state(BinaryWriter& out) const {
     require_training_state("save_state");
+    if (start_rows_ > 0) {
+        // A resume would rebuild the map from the new scans alone, without the old map.
+        throw Error(
+            "IncrementalMapper::save_state: a mapper that continues a saved map (start_from) "
+            "writes no checkpoint");
+    }
     out.tag("incremental mapper");
     static_assert(std::is_trivially_copyable_v<IncrementalFrameStats>);
     static_assert(std::is_trivially_copyable_v<MappingStats>);

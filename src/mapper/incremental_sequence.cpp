@@ -167,18 +167,41 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
 }
 }  // namespace
 
-IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config_in,
-                                                const ScanSequence& sequence,
-                                                const fs::path& out_dir,
-                                                const std::string& progress_tag,
-                                                const RunControl* control) {
+IncrementalSequenceMap map_sequence_incremental(
+    const MapperConfig& config_in, const ScanSequence& sequence, const fs::path& out_dir,
+    const std::string& progress_tag, const RunControl* control, const MapToContinue* from) {
     MapperConfig config = config_in;
     config.finalize();
+    if (from) {
+        if (!from->sdf) throw Error("map_sequence_incremental: MapToContinue without a map");
+        if (config.odometry.estimate_poses) {
+            throw ConfigError("continuing map '" + from->file.string() +
+                              "' needs the new scans' poses in its world frame: give a pose file, "
+                              "or localise the scans in the map (`shine map --from` does so for "
+                              "scans without poses, or with --poses estimate), not "
+                              "odometry.estimate_poses");
+        }
+        if (control && control->resume) {
+            throw ConfigError("a run that continues map '" + from->file.string() +
+                              "' cannot be resumed from a checkpoint; start it again");
+        }
+        control = nullptr;  // no checkpoint: a resume would not have the old map
+    }
     ensure_directory(out_dir);
     const int mesh_every = config.incremental.mesh_every;
     if (mesh_every > 0) ensure_directory(out_dir / "progress");
     IncrementalSequenceMap result;
-    result.mapper = std::make_unique<IncrementalMapper>(config);
+    if (from) {
+        // The old map's decoder replaces the pretrained one, which is not loaded.
+        MapperConfig mapper_config = config;
+        mapper_config.incremental.decoder_weights = "none";
+        result.mapper = std::make_unique<IncrementalMapper>(mapper_config);
+        result.mapper->start_from(std::move(*from->sdf), from->file.string());
+        // Stored with the new map: where its decoder came from.
+        config.incremental.decoder_weights = from->file.string();
+    } else {
+        result.mapper = std::make_unique<IncrementalMapper>(config);
+    }
     IncrementalMapper& mapper = *result.mapper;
     if (config.odometry.estimate_poses) {
         result.odometry = std::make_unique<ScanOdometry>(config.odometry);

@@ -21,6 +21,8 @@
 //      sample count, see importance_weights.hpp); the anchors theta* are the rows' values when
 //      the next scan first touches them (the trainer snapshots them); then the optimiser state
 //      of rows no frame of the last incremental.active_frames trained is released.
+// start_from() continues a saved map instead of an empty one (`shine map --from`,
+// docs/continue.md): the old rows start at the importance cap, the old decoder stays frozen.
 // The decoder is pretrained and frozen (models/decoder_pretrained.yaml by default); Adam's state
 // and the importance weights persist across scans. Deterministic for a seed, whatever the
 // thread count.
@@ -29,6 +31,7 @@
 #include <deque>
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "shine/io/scan_sequence.hpp"
@@ -120,6 +123,20 @@ class IncrementalMapper {
     explicit IncrementalMapper(const MapperConfig& config);
     ~IncrementalMapper();
 
+    /// Continues the saved map `old` (`shine map --from`): its feature octree, decoder and origin
+    /// replace this mapper's, the origin counts as set (the scans' world poses are in the old
+    /// map's world frame), the decoder stays frozen, and every old row starts with the importance
+    /// cap Omega_m, so that the anchors (each row's value when a scan first touches it) hold the
+    /// old part while the rows the new scans add are free. Call before the first scan. `source`
+    /// (the map's file) names it in errors and becomes incremental.decoder_weights. Throws
+    /// ConfigError naming `source` and the setting (map.leaf_size_m, map.num_levels,
+    /// map.feature_dim, map.feature_precision, map.interpolation, decoder.hidden_dims) where the
+    /// old map differs from this configuration, or Error after a scan. The consolidation then
+    /// starts from the old rows' saved values (restore_old_rows()) and holds them at the cap;
+    /// the saved values are kept until release_training_state() (feature_dim floats a row).
+    /// A continued mapper writes no checkpoint (save_state() throws Error).
+    void start_from(NeuralSdf&& old, const std::string& source);
+
     /// Integrates one scan (steps 1-5 of the file comment). Throws DataError naming the scan's
     /// source for invalid points (per preprocess config).
     const IncrementalFrameStats& add_scan(const Scan& scan);
@@ -134,13 +151,13 @@ class IncrementalMapper {
     /// steps over the kept scans (the last replay_frames, with the normals each got when
     /// current), their rays drawn uniformly (with preprocess.voxel_points all: every point of
     /// each kept scan, drawn as batch mode draws grouped rays, each with its voxel's normal),
-    /// with sampling.surface_band_m (batch mode's band), without the regulariser, the learning
-    /// rate decaying from
-    /// incremental.consolidation_learning_rate (cosine, to final_learning_rate_ratio of it). The
-    /// decoder stays frozen; the optimiser starts afresh (every row's Adam state is dropped).
-    /// `progress(done, total)` is called after each step when given. add_scan() may follow (the
-    /// next scan's anchors are the consolidated rows); the frames' statistics are unchanged.
-    /// Throws ConfigError for negative `steps`.
+    /// with sampling.surface_band_m (batch mode's band), without the regulariser (a continued
+    /// map, start_from(): its old rows restored to their saved values and held at the cap), the
+    /// learning rate decaying from incremental.consolidation_learning_rate (cosine, to
+    /// final_learning_rate_ratio of it). The decoder stays frozen; the optimiser starts afresh
+    /// (every row's Adam state is dropped). `progress(done, total)` is called after each step when
+    /// given. add_scan() may follow (the next scan's anchors are the consolidated rows); the
+    /// frames' statistics are unchanged. Throws ConfigError for negative `steps`.
     const ConsolidationStats& consolidate(int steps,
                                           const std::function<void(int, int)>& progress = {});
     /// The last consolidate()'s statistics (steps 0 before).
@@ -151,6 +168,10 @@ class IncrementalMapper {
     /// stored ones (count and points per scan) and throws IoError via the reader otherwise.
     void save_state(BinaryWriter& out) const;
     void load_state(BinaryReader& in);
+
+    /// Feature rows of the map start_from() continued (0 without one): rows below it are the old
+    /// map's.
+    std::size_t start_rows() const { return start_rows_; }
 
     const NeuralSdf& sdf() const { return *sdf_; }
     NeuralSdf& sdf() { return *sdf_; }
@@ -207,6 +228,14 @@ class IncrementalMapper {
     /// The training rays (replay_): the last replay_frames scans of the window with their stored
     /// normals, the current one last; the last `changed_scans` of them taken anew.
     void sync_replay_rays(std::size_t changed_scans);
+    /// The consolidation of a continued map: the rows start_from() brought take their saved
+    /// values again (the optimiser holds no state for them then), so that the consolidation's
+    /// anchors are the old map's values and not where the new scans' steps moved them, one
+    /// re-anchored scan after another. No-op without start_from().
+    void restore_old_rows();
+    /// Importance weights over the map's rows with the rows start_from() brought (below
+    /// start_rows_) at the cap Omega_m and the others at 0.
+    ImportanceWeights importance_held_old_rows() const;
     /// Throws Error naming `what` once release_training_state() has run.
     void require_training_state(const char* what) const;
 
@@ -245,6 +274,8 @@ class IncrementalMapper {
     MappingStats stats_;
     std::uint64_t iteration_ = 0;
     bool origin_set_ = false;
+    std::size_t start_rows_ = 0;            ///< rows of the map start_from() continued
+    std::vector<float> start_features_;     ///< their saved values, start_rows_ x feature_dim
     std::size_t released_state_bytes_ = 0;  ///< state_bytes() when the state was released
     float consolidation_band_m_ = 0.0f;     ///< sampling.surface_band_m before incremental's
     ConsolidationStats consolidation_;

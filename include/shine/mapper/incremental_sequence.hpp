@@ -50,6 +50,12 @@ struct IncrementalSequenceMap {
     std::vector<double> scan_wall_seconds;
 };
 
+/// A saved map that a run continues (`shine map --from`; docs/continue.md).
+struct MapToContinue {
+    std::filesystem::path file;  ///< the map.vdb it was read from (errors, records)
+    NeuralSdf* sdf = nullptr;    ///< load_neural_map's; moved into the mapper
+};
+
 /// Maps every scan of `sequence` in incremental mode with `config` (finalized here) and writes the
 /// products into `out_dir` (created if missing), plus the progress meshes every
 /// config.incremental.mesh_every frames. Scans with per-point times are deskewed when
@@ -64,10 +70,18 @@ struct IncrementalSequenceMap {
 /// the checkpoint had integrated (IncrementalMapper::replay_scan), restores the state and goes on
 /// with the next frame; with odometry the checkpoint holds the estimated poses, so that the
 /// replayed scans sit where they were mapped.
+///
+/// With `from` the run continues that map (IncrementalMapper::start_from: its features, frozen
+/// decoder and origin, old rows held at the importance cap) and the sequence's poses must be in
+/// its world frame; the products hold the old part and the new scans. Throws ConfigError for a
+/// map whose settings differ from `config` (naming the file and the setting), for odometry
+/// (config.odometry.estimate_poses: localise the scans in the map first, map_localizer.hpp) and
+/// for a checkpoint resume (control->resume). The run writes no checkpoint.
 IncrementalSequenceMap map_sequence_incremental(const MapperConfig& config,
                                                 const ScanSequence& sequence,
                                                 const std::filesystem::path& out_dir,
                                                 const std::string& progress_tag = {},
-                                                const RunControl* control = nullptr);
+                                                const RunControl* control = nullptr,
+                                                const MapToContinue* from = nullptr);
 
 }  // namespace shine
