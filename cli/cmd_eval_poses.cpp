@@ -8,13 +8,12 @@
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "command_registry.hpp"
+#include "pose_file_format.hpp"
 #include "shine/core/error.hpp"
-#include "shine/io/file_contents.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/tum.hpp"
 #include "shine/odometry/pose_association.hpp"
@@ -33,59 +32,32 @@ struct EvalPosesOptions {
     bool json = false;
 };
 
-enum class PoseFormat { kKitti, kTum };
-
-/// KITTI (12 numbers a line) or TUM (8 numbers a line), from the first line with data.
-PoseFormat detect_format(const std::string& path) {
-    const std::string text = read_file_contents(path, "pose file", "a KITTI or TUM pose file");
-    std::istringstream lines(text);
-    std::string line;
-    int line_number = 0;
-    while (std::getline(lines, line)) {
-        ++line_number;
-        const std::size_t start = line.find_first_not_of(" \t\r");
-        if (start == std::string::npos || line[start] == '#') continue;
-        std::istringstream fields(line);
-        std::string field;
-        int count = 0;
-        while (fields >> field) ++count;
-        if (count == 12) return PoseFormat::kKitti;
-        if (count == 8) return PoseFormat::kTum;
-        throw IoError("pose file '" + path + "' line " + std::to_string(line_number) + " has " +
-                      std::to_string(count) +
-                      " fields: expected 12 (KITTI: a row-major 3x4 [R|t]) or 8 (TUM: time tx ty "
-                      "tz qx qy qz qw); give --format if the file is one of them");
-    }
-    throw IoError("pose file '" + path + "' has no poses");
+PoseFileFormat format_of(const std::string& path, const std::string& option) {
+    if (option == "kitti") return PoseFileFormat::kKitti;
+    if (option == "tum") return PoseFileFormat::kTum;
+    return detect_pose_file_format(path, "pose file", "; give --format if the file is one of them");
 }
-
-PoseFormat format_of(const std::string& path, const std::string& option) {
-    if (option == "kitti") return PoseFormat::kKitti;
-    if (option == "tum") return PoseFormat::kTum;
-    return detect_format(path);
-}
-
-const char* name_of(PoseFormat format) { return format == PoseFormat::kKitti ? "kitti" : "tum"; }
 
 /// The two trajectories paired pose by pose, with a note on how they were paired.
 struct PairedTrajectories {
     std::vector<Eigen::Isometry3d> estimate, reference;
-    PoseFormat format = PoseFormat::kKitti;
+    PoseFileFormat format = PoseFileFormat::kKitti;
     std::size_t estimate_count = 0, reference_count = 0;
 };
 
 PairedTrajectories read_paired(const EvalPosesOptions& options) {
-    const PoseFormat est_format = format_of(options.estimate_path, options.format);
-    const PoseFormat ref_format = format_of(options.reference_path, options.format);
+    const PoseFileFormat est_format = format_of(options.estimate_path, options.format);
+    const PoseFileFormat ref_format = format_of(options.reference_path, options.format);
     if (est_format != ref_format) {
-        throw DataError("'" + options.estimate_path + "' is a " + name_of(est_format) +
-                        " pose file but '" + options.reference_path + "' a " + name_of(ref_format) +
+        throw DataError("'" + options.estimate_path + "' is a " + to_string(est_format) +
+                        " pose file but '" + options.reference_path + "' a " +
+                        to_string(ref_format) +
                         " one: KITTI files pair poses by line, TUM files by time; convert one of "
                         "them");
     }
     PairedTrajectories out;
     out.format = est_format;
-    if (est_format == PoseFormat::kKitti) {
+    if (est_format == PoseFileFormat::kKitti) {
         out.estimate = read_kitti_poses(options.estimate_path);
         out.reference = read_kitti_poses(options.reference_path);
         out.estimate_count = out.estimate.size();
@@ -135,7 +107,7 @@ int run_eval_poses(const EvalPosesOptions& options) {
         nlohmann::json j;
         j["estimate"] = options.estimate_path;
         j["reference"] = options.reference_path;
-        j["format"] = name_of(paired.format);
+        j["format"] = to_string(paired.format);
         j["estimate_poses"] = paired.estimate_count;
         j["reference_poses"] = paired.reference_count;
         j["paired_poses"] = paired.estimate.size();
@@ -165,7 +137,7 @@ int run_eval_poses(const EvalPosesOptions& options) {
     std::printf("estimate   %s (%zu poses)\nreference  %s (%zu poses)\n",
                 options.estimate_path.c_str(), paired.estimate_count,
                 options.reference_path.c_str(), paired.reference_count);
-    if (paired.format == PoseFormat::kTum) {
+    if (paired.format == PoseFileFormat::kTum) {
         std::printf("paired     %zu poses by timestamp (within %g s)\n", paired.estimate.size(),
                     options.max_time_diff_s);
     } else {
