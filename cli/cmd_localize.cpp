@@ -13,11 +13,12 @@
 
 #include "cli_common.hpp"
 #include "command_registry.hpp"
+#include "pose_file_format.hpp"
+#include "saved_map.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
 #include "shine/core/progress.hpp"
-#include "shine/io/file_contents.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/tum.hpp"
 #include "shine/mapper/map_localizer.hpp"
@@ -42,63 +43,12 @@ struct LocalizeOptions {
     bool quiet = false;
 };
 
-/// map.vdb of a `shine map` output folder, or the file itself.
-fs::path map_file_of(const fs::path& map) {
-    std::error_code ec;
-    if (fs::is_directory(map, ec)) {
-        const fs::path file = map / "map.vdb";
-        if (!fs::exists(file, ec)) {
-            throw IoError("'" + map.string() +
-                          "' holds no map.vdb: give a `shine map` output folder or its map.vdb");
-        }
-        return file;
-    }
-    if (!fs::exists(map, ec)) throw IoError("map '" + map.string() + "' does not exist");
-    return map;
-}
-
-/// The trajectory the map was made along (the places of the global search), from the map's
-/// folder: the refined poses of a batch run, else the estimated ones; empty when neither is there.
-std::vector<Eigen::Isometry3d> map_trajectory(const fs::path& map_file, std::string& source) {
-    for (const char* name : {"poses_refined.txt", "poses.txt"}) {
-        const fs::path path = map_file.parent_path() / name;
-        std::error_code ec;
-        if (fs::exists(path, ec)) {
-            source = path.string();
-            return read_kitti_poses(path);
-        }
-    }
-    source.clear();
-    return {};
-}
-
 /// The first pose of a KITTI (12 numbers a line) or TUM (8) pose file.
-Eigen::Isometry3d first_pose_of(const fs::path& path) {
-    const std::string text =
-        read_file_contents(path, "initial pose file", "a KITTI or TUM pose file");
-    std::size_t start = 0;
-    while (start < text.size()) {
-        std::size_t end = text.find('\n', start);
-        if (end == std::string::npos) end = text.size();
-        const std::string line = text.substr(start, end - start);
-        start = end + 1;
-        const std::size_t first = line.find_first_not_of(" \t\r");
-        if (first == std::string::npos || line[first] == '#') continue;
-        std::size_t fields = 0;
-        bool in_field = false;
-        for (const char c : line) {
-            const bool space = c == ' ' || c == '\t' || c == '\r';
-            if (!space && !in_field) ++fields;
-            in_field = !space;
-        }
-        if (fields == 12) return parse_kitti_poses(text, path.string()).front();
-        if (fields == 8) return parse_tum_poses(text, path.string()).front().T_world_sensor;
-        throw IoError("initial pose file '" + path.string() + "': its first pose line has " +
-                      std::to_string(fields) +
-                      " fields; expected 12 (KITTI: a row-major 3x4 [R|t]) or 8 (TUM: time tx ty "
-                      "tz qx qy qz qw)");
+Eigen::Isometry3d first_pose_of(const std::string& path) {
+    if (detect_pose_file_format(path, "initial pose file") == PoseFileFormat::kKitti) {
+        return read_kitti_poses(path).front();
     }
-    throw IoError("initial pose file '" + path.string() + "' holds no pose");
+    return read_tum_poses(path).front().T_world_sensor;
 }
 
 double rotation_deg(const Eigen::Matrix3d& R) {
@@ -109,7 +59,7 @@ int run_localize(const LocalizeOptions& opt) {
     Progress::set_globally_enabled(!opt.quiet);
     auto thread_limit = limit_threads(opt.threads);
     validate(opt.config);
-    const fs::path map_file = map_file_of(opt.map);
+    const fs::path map_file = saved_map_file(opt.map, "map");
     const fs::path out(opt.out);
 
     ScanSequenceOptions seq_options;
@@ -125,7 +75,8 @@ int run_localize(const LocalizeOptions& opt) {
 
     const LoadedMap loaded = load_neural_map(map_file);
     std::string trajectory_source;
-    const std::vector<Eigen::Isometry3d> trajectory = map_trajectory(map_file, trajectory_source);
+    const std::vector<Eigen::Isometry3d> trajectory =
+        saved_map_trajectory(map_file, trajectory_source);
     MapLocalizer localizer(loaded.sdf, opt.config, trajectory);
     if (initial) localizer.set_initial_pose(*initial);
     if (!opt.quiet) {

@@ -14,6 +14,7 @@
 #include "command_registry.hpp"
 #include "map_from.hpp"
 #include "product_stats.hpp"
+#include "saved_map.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
@@ -462,7 +463,7 @@ int run_map(const MapOptions& given_options) {
     fs::path old_map_file;
     nlohmann::json from_json;
     if (continuing) {
-        old_map_file = continued_map_file(opt.from);
+        old_map_file = saved_map_file(opt.from, "--from");
         old_map.emplace(load_neural_map(old_map_file));
         from_json = {{"map", fs::absolute(old_map_file).string()},
                      {"corners", old_map->sdf.octree.num_corners()},

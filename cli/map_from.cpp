@@ -4,6 +4,7 @@
 #include <fstream>
 #include <vector>
 
+#include "saved_map.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
 #include "shine/core/progress.hpp"
@@ -14,52 +15,30 @@ namespace shine::cli {
 namespace fs = std::filesystem;
 
 namespace {
-/// The trajectory the old map was made along: its folder's refined or estimated poses, else the
-/// pose file of the data it was made from (stats.json "data"); empty when none is found.
+/// The trajectory the old map was made along: its folder's (saved_map_trajectory), else the pose
+/// file of the data it was made from (stats.json "data"); empty when none is found.
 std::vector<Eigen::Isometry3d> old_trajectory(const fs::path& map_file, std::string& source) {
+    std::vector<Eigen::Isometry3d> trajectory = saved_map_trajectory(map_file, source);
+    if (!trajectory.empty()) return trajectory;
     std::error_code ec;
-    const fs::path folder = map_file.parent_path();
-    std::vector<fs::path> candidates = {folder / "poses_refined.txt", folder / "poses.txt"};
-    const fs::path stats = folder / "stats.json";
-    if (fs::exists(stats, ec)) {
-        try {
-            std::ifstream in(stats);
-            const nlohmann::json json = nlohmann::json::parse(in);
-            if (json.contains("data") && json["data"].is_string()) {
-                candidates.push_back(fs::path(json["data"].get<std::string>()) / "poses.txt");
+    const fs::path stats = map_file.parent_path() / "stats.json";
+    if (!fs::exists(stats, ec)) return {};
+    try {
+        std::ifstream in(stats);
+        const nlohmann::json json = nlohmann::json::parse(in);
+        if (json.contains("data") && json["data"].is_string()) {
+            const fs::path poses = fs::path(json["data"].get<std::string>()) / "poses.txt";
+            if (fs::exists(poses, ec)) {
+                source = poses.string();
+                return read_kitti_poses(poses);
             }
-        } catch (const nlohmann::json::exception&) {
-            // A damaged stats.json only loses this hint.
         }
+    } catch (const nlohmann::json::exception&) {
+        // A damaged stats.json only loses this hint.
     }
-    for (const fs::path& path : candidates) {
-        if (fs::exists(path, ec)) {
-            source = path.string();
-            return read_kitti_poses(path);
-        }
-    }
-    source.clear();
     return {};
 }
 }  // namespace
-
-fs::path continued_map_file(const std::string& from) {
-    std::error_code ec;
-    const fs::path path(from);
-    if (fs::is_directory(path, ec)) {
-        const fs::path file = path / "map.vdb";
-        if (!fs::exists(file, ec)) {
-            throw IoError("--from '" + from +
-                          "' holds no map.vdb: give a `shine map` output folder or its map.vdb");
-        }
-        return file;
-    }
-    if (!fs::exists(path, ec)) {
-        throw IoError("--from '" + from +
-                      "' does not exist: give a `shine map` output folder or its map.vdb");
-    }
-    return path;
-}
 
 ScanSequence localize_in_continued_map(const ScanSequence& sequence, const NeuralSdf& sdf,
                                        const fs::path& map_file, bool quiet, nlohmann::json& json) {

@@ -13,10 +13,6 @@
 
 namespace shine::cli {
 
-/// The map.vdb of a `shine map` output folder, or `from` itself when it is a file. Throws IoError
-/// naming `from` when it is missing or a folder without map.vdb.
-std::filesystem::path continued_map_file(const std::string& from);
-
 /// Localises every scan of `sequence` in `sdf` (the map read from `map_file`, which it only
 /// reads), the first scan found by the localiser's search around the places of the map's
 /// trajectory (OLD_OUT/poses_refined.txt or poses.txt, else the poses of the data the old map

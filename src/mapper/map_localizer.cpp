@@ -9,6 +9,7 @@
 
 #include "shine/bake/level_set_bake.hpp"
 #include "shine/core/error.hpp"
+#include "shine/geometry/map_frame.hpp"
 #include "shine/mapper/neural_sdf_field.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/odometry/registration_points.hpp"
@@ -224,12 +225,8 @@ Eigen::Isometry3d MapLocalizer::prediction() const {
 
 void MapLocalizer::score(const std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& pose,
                          double& inlier_ratio, std::size_t& valid, double& residual_m) const {
-    std::vector<Eigen::Vector3f> points_map(points.size());
-    const Eigen::Matrix3d R = pose.linear();
-    const Eigen::Vector3d t = pose.translation() - sdf_.origin_world_m;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        points_map[i] = (R * points[i].cast<double>() + t).cast<float>();
-    }
+    const std::vector<Eigen::Vector3f> points_map =
+        points_in_map_frame(points, map_from_sensor(pose, sdf_.origin_world_m));
     std::vector<float> sdf_m;
     std::vector<std::uint8_t> inside;
     sdf_.query(points_map, QueryMask::kLevel0, sdf_m, inside);
@@ -311,11 +308,9 @@ MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& p
     const std::size_t n = sample.size();
     std::vector<Eigen::Vector3f> points_map(candidates.size() * n);
     tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t c) {
-        const Eigen::Matrix3d R = candidates[c].linear();
-        const Eigen::Vector3d t = candidates[c].translation() - sdf_.origin_world_m;
-        for (std::size_t i = 0; i < n; ++i) {
-            points_map[c * n + i] = (R * sample[i].cast<double>() + t).cast<float>();
-        }
+        const std::vector<Eigen::Vector3f> moved =
+            points_in_map_frame(sample, map_from_sensor(candidates[c], sdf_.origin_world_m));
+        std::copy(moved.begin(), moved.end(), points_map.begin() + c * n);
     });
     std::vector<float> sdf_m;
     std::vector<std::uint8_t> inside;
@@ -373,28 +368,28 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     record.points = points.size();
     const Eigen::Isometry3d predicted = prediction();
     const bool first = records_.empty();
-    // Without the map's trajectory the search looks around the prediction and the last
-    // localised pose, farther (lost_search_radius_m).
-    std::vector<Eigen::Isometry3d> global_centres = places_;
-    double radius_m = config_.search_radius_m;
-    if (global_centres.empty()) {
-        global_centres.push_back(predicted);
+    // The global search (only when it runs): around the map's places; without them around the
+    // prediction and the last localised pose, farther (lost_search_radius_m).
+    const auto global_search = [&]() {
+        if (!places_.empty()) return search(wide, places_, config_.search_radius_m);
+        std::vector<Eigen::Isometry3d> centres = {predicted};
         for (auto r = records_.rbegin(); r != records_.rend(); ++r) {
             if (!r->localized) continue;
             if ((r->T_world_sensor.translation() - predicted.translation()).norm() >
                 config_.search_spacing_m) {
-                global_centres.push_back(r->T_world_sensor);
+                centres.push_back(r->T_world_sensor);
             }
             break;
         }
-        radius_m = std::max(radius_m, config_.lost_search_radius_m);
-    }
+        return search(wide, centres,
+                      std::max(config_.search_radius_m, config_.lost_search_radius_m));
+    };
 
     Attempt attempt;
     LocalizeSource source = LocalizeSource::kTracked;
     int iterations = 0;
     if (first && !has_initial_pose_) {
-        attempt = search(wide, global_centres, radius_m);
+        attempt = global_search();
         source = LocalizeSource::kGlobalSearch;
         record.points = wide.size();
     } else {
@@ -411,7 +406,7 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
         }
         if (!attempt.localized && failures_in_a_row_ + 1 >= config_.global_search_after_failures) {
             iterations += attempt.iterations;
-            attempt = search(wide, global_centres, radius_m);
+            attempt = global_search();
             source = LocalizeSource::kGlobalSearch;
         }
     }

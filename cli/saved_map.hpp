@@ -1,0 +1,23 @@
+// A map saved by `shine map`, as the subcommands that reuse one find it: the output folder's
+// map.vdb (or the file given) and the trajectory the map was made along, from the folder.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace shine::cli {
+
+/// The map.vdb of a `shine map` output folder, or `given` itself when it is a file. Throws
+/// IoError naming `label` (the option or argument, e.g. "map", "--from") and `given` when it is
+/// missing or a folder without map.vdb.
+std::filesystem::path saved_map_file(const std::string& given, const std::string& label);
+
+/// The trajectory the map in `map_file` was made along, from its folder: the refined poses of a
+/// batch run (poses_refined.txt), else the estimated ones (poses.txt); empty when neither is
+/// there. `source` is set to the file read (empty for none).
+std::vector<Eigen::Isometry3d> saved_map_trajectory(const std::filesystem::path& map_file,
+                                                    std::string& source);
+
+}  // namespace shine::cli
