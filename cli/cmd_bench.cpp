@@ -1,7 +1,8 @@
-// `shine bench [DATA] -o OUT`: the memory/accuracy study -- ShineVDB and the TSDF baseline on the
-// same scans at several resolutions -> OUT/<method>_<size>/..., OUT/bench.csv, OUT/bench.json,
-// OUT/bench.md, OUT/memory_vs_chamfer.png, a table with the ShineVDB/TSDF ratios and the study's
-// checks.
+// `shine bench [DATA] -o OUT`: the memory/accuracy study -- ShineVDB (batch mode; with
+// --modes batch,incremental incremental mode too) and the TSDF baseline on the same scans at
+// several resolutions -> OUT/<method>_<size>/..., OUT/bench.csv, OUT/bench.json, OUT/bench.md,
+// OUT/memory_vs_chamfer.png, a table with the ShineVDB/TSDF ratios and the study's checks; with
+// --holdout-every, the held-out table (accuracy, wall time, memory per run).
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -29,6 +30,7 @@ struct BenchOptions {
     std::string data;
     std::string out = "out-bench";
     std::string sizes_m = "0.1,0.2,0.5,1.0";
+    std::string modes = "batch";
     std::string config_path;
     int threads = -1;
     int iterations = -1;
@@ -85,6 +87,11 @@ int run_bench(const BenchOptions& opt) {
         if (opt.holdout_every > 0) {
             throw ConfigError("--holdout-every belongs to the accuracy study, not to --speed");
         }
+        if (opt.modes != "batch") {
+            throw ConfigError(
+                "--modes belongs to the accuracy study; --speed always times the TSDF, ShineVDB "
+                "batch and incremental");
+        }
         return run_bench_speed(opt);
     }
     const auto start_total = std::chrono::steady_clock::now();
@@ -93,6 +100,7 @@ int run_bench(const BenchOptions& opt) {
     // Every option is checked before any scan is read or any file written.
     BenchConfig config;
     config.sizes_m = parse_sizes_m(opt.sizes_m);
+    config.modes = parse_modes(opt.modes);
     if (!opt.config_path.empty()) load_config_yaml(opt.config_path, config.shine);
     if (opt.half_features) {
         // Through the configuration's own parser, so the key stays defined in one place.
@@ -130,9 +138,9 @@ int run_bench(const BenchOptions& opt) {
     for (std::size_t k = 0; k < config.sizes_m.size(); ++k) {
         const double size_m = config.sizes_m[k];
         if (!opt.quiet) {
-            std::fprintf(stderr, "== size %s m (%zu/%zu): ShineVDB leaf, TSDF voxel %s m ==\n",
+            std::fprintf(stderr, "== size %s m (%zu/%zu): ShineVDB leaf (%s), TSDF voxel %s m ==\n",
                          format_size_m(size_m).c_str(), k + 1, config.sizes_m.size(),
-                         format_size_m(size_m).c_str());
+                         format_modes(config.modes).c_str(), format_size_m(size_m).c_str());
         }
         for (BenchRow& row : run_bench_size(config, size_m, scans, reference.get(), out)) {
             rows.push_back(row);
@@ -148,6 +156,9 @@ int run_bench(const BenchOptions& opt) {
     info.half_features = config.shine.octree.feature_precision == FeaturePrecision::kFloat16;
     info.trunc_voxels = config.trunc_voxels;
     info.holdout_every = opt.holdout_every;
+    info.modes.clear();
+    if (config.modes.batch) info.modes.push_back("batch");
+    if (config.modes.incremental) info.modes.push_back("incremental");
     info.heldout_threshold_m = config.heldout.threshold_m;
     write_stream_atomically(out / "bench.csv", [&](std::ostream& os) { os << rows_to_csv(rows); });
     write_stream_atomically(out / "bench.json",
@@ -168,7 +179,8 @@ int run_bench(const BenchOptions& opt) {
     if (opt.holdout_every > 0) {
         std::printf(
             "held-out scans (%zu, 1 in %d, not mapped; their rays cast into each mesh; within "
-            "%g cm; a miss is a failure; the TSDF fuses every point):\n%s\n",
+            "%g cm; a miss is a failure; the TSDF fuses every point; seconds: wall time, scans in "
+            "memory to mesh on disk):\n%s\n",
             config.heldout_frames.size(), opt.holdout_every, config.heldout.threshold_m * 100,
             format_heldout_table(rows).c_str());
     }
@@ -191,8 +203,7 @@ const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
         "bench",
         "Memory/accuracy study: ShineVDB and the TSDF baseline on the same scans at several "
         "resolutions -> OUT/bench.csv, OUT/bench.json, OUT/bench.md, OUT/memory_vs_chamfer.png "
-        "(see "
-        "docs/benchmark.md)");
+        "(see docs/benchmark.md)");
     cmd->add_option("data", opt->data,
                     "Sequence directory (KITTI layout or .ply/.pcd scans with poses); default: the "
                     "bundled example street, simulated on first use");
@@ -200,6 +211,11 @@ const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
     cmd->add_option("--sizes-m", opt->sizes_m,
                     "Resolutions in metres, comma-separated: ShineVDB leaf size and TSDF voxel "
                     "size (truncation 3 voxels)")
+        ->capture_default_str();
+    cmd->add_option("--modes", opt->modes,
+                    "ShineVDB's modes, comma-separated: batch, incremental or batch,incremental. "
+                    "Incremental mode runs as `shine map --mode incremental` (its schedule from "
+                    "-c, not --iterations) -> OUT/shinevdb_incremental_<size>/")
         ->capture_default_str();
     cmd->add_option("-c,--config", opt->config_path,
                     "YAML configuration of ShineVDB (see examples/config.yaml); its leaf size is "

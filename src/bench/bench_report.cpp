@@ -44,15 +44,29 @@ std::string format(const char* fmt, double a) {
     return buffer;
 }
 
+/// The method with ShineVDB's mode spelled out: "ShineVDB batch", "ShineVDB incremental", "TSDF".
+std::string mode_label(BenchMethod method) {
+    return method == BenchMethod::kShineVdb ? "ShineVDB batch" : method_label(method);
+}
+
+bool is_shine(BenchMethod method) { return method != BenchMethod::kTsdf; }
+
+std::string join_modes(const std::vector<std::string>& modes) {
+    std::string out;
+    for (const std::string& mode : modes) out += (out.empty() ? "" : ", ") + mode;
+    return out;
+}
+
 std::string megabytes(std::size_t bytes) { return format("%.2f MB", bytes / 1e6); }
 std::string centimetres(double m) { return format("%.2f cm", m * 100.0); }
 std::string percent(double ratio) { return format("%.1f %%", ratio * 100.0); }
 
-/// Rows of both methods at each resolution, sorted by size.
+/// Rows of every method at each resolution, sorted by size.
 struct SizePair {
     double size_m;
-    const BenchRow* shine = nullptr;
+    const BenchRow* shine = nullptr;  ///< batch mode
     const BenchRow* tsdf = nullptr;
+    const BenchRow* incremental = nullptr;
 };
 
 std::vector<SizePair> pair_by_size(const std::vector<BenchRow>& rows) {
@@ -64,7 +78,17 @@ std::vector<SizePair> pair_by_size(const std::vector<BenchRow>& rows) {
             pairs.push_back({row.size_m});
             it = pairs.end() - 1;
         }
-        (row.method == BenchMethod::kShineVdb ? it->shine : it->tsdf) = &row;
+        switch (row.method) {
+            case BenchMethod::kShineVdb:
+                it->shine = &row;
+                break;
+            case BenchMethod::kTsdf:
+                it->tsdf = &row;
+                break;
+            case BenchMethod::kShineVdbIncremental:
+                it->incremental = &row;
+                break;
+        }
     }
     std::sort(pairs.begin(), pairs.end(),
               [](const SizePair& a, const SizePair& b) { return a.size_m < b.size_m; });
@@ -318,6 +342,7 @@ std::string bench_to_json(const std::vector<BenchRow>& rows, const BenchInfo& in
     root["half_features"] = info.half_features;
     root["tsdf_trunc_voxels"] = info.trunc_voxels;
     root["holdout_every"] = info.holdout_every > 0 ? json(info.holdout_every) : json(nullptr);
+    root["modes"] = info.modes;
     root["units"] = "map_bytes, file_bytes: bytes; seconds; *_m: metres; ratios in [0, 1]";
     root["rows"] = json::array();
     for (const BenchRow& row : rows) root["rows"].push_back(row_json(row));
@@ -409,7 +434,7 @@ std::vector<BenchRow> rows_from_json(const std::string& text, const std::string&
 std::string format_rows_table(const std::vector<BenchRow>& rows) {
     std::string out;
     char line[256];
-    std::snprintf(line, sizeof(line), "%-9s %6s %6s %10s %10s %8s %8s %8s %8s %8s %7s %7s %7s\n",
+    std::snprintf(line, sizeof(line), "%-20s %6s %6s %10s %10s %8s %8s %8s %8s %8s %7s %7s %7s\n",
                   "method", "size", "iters", "map MB", "file MB", "seconds", "s/frame", "acc cm",
                   "comp cm", "CD cm", "CR %", "P %", "F %");
     out += line;
@@ -420,8 +445,8 @@ std::string format_rows_table(const std::vector<BenchRow>& rows) {
     });
     for (const BenchRow* row : sorted) {
         const std::string iterations =
-            row->method == BenchMethod::kShineVdb ? std::to_string(row->iterations) : "-";
-        std::snprintf(line, sizeof(line), "%-9s %6s %6s %10.2f %10.2f %8.1f %8.3f",
+            is_shine(row->method) ? std::to_string(row->iterations) : "-";
+        std::snprintf(line, sizeof(line), "%-20s %6s %6s %10.2f %10.2f %8.1f %8.3f",
                       method_label(row->method).c_str(),
                       (format_size_m(row->size_m) + " m").c_str(), iterations.c_str(),
                       row->map_bytes / 1e6, row->file_bytes / 1e6, row->seconds,
@@ -461,37 +486,42 @@ std::string format_ratios_table(const std::vector<BenchRatio>& ratios) {
 
 std::string format_heldout_table(const std::vector<BenchRow>& rows) {
     std::string out;
-    char line[200];
+    char line[240];
     const std::vector<SizePair> pairs = pair_by_size(rows);
     for (const SizePair& pair : pairs) {
-        for (const BenchRow* row : {pair.tsdf, pair.shine}) {
+        for (const BenchRow* row : {pair.tsdf, pair.shine, pair.incremental}) {
             if (!row || !row->heldout) continue;
             if (out.empty()) {
-                std::snprintf(line, sizeof(line), "%-9s %6s %10s %9s %9s %10s %9s %10s\n", "method",
-                              "size", "rays", "hit %", "within %", "median cm", "mean cm",
-                              "map MB");
+                std::snprintf(line, sizeof(line), "%-20s %6s %10s %9s %9s %10s %9s %9s %10s\n",
+                              "method", "size", "rays", "hit %", "within %", "median cm", "mean cm",
+                              "seconds", "map MB");
                 out += line;
             }
             const BenchHeldout& h = *row->heldout;
-            std::snprintf(line, sizeof(line), "%-9s %6s %10zu %9.2f %9.2f %10.2f %9.2f %10.2f\n",
-                          method_label(row->method).c_str(),
-                          (format_size_m(row->size_m) + " m").c_str(), h.rays, h.hit_ratio * 100,
-                          h.within_ratio * 100, h.median_abs_error_m * 100,
-                          h.mean_abs_error_m * 100, row->map_bytes / 1e6);
+            std::snprintf(
+                line, sizeof(line), "%-20s %6s %10zu %9.2f %9.2f %10.2f %9.2f %9.1f %10.2f\n",
+                mode_label(row->method).c_str(), (format_size_m(row->size_m) + " m").c_str(),
+                h.rays, h.hit_ratio * 100, h.within_ratio * 100, h.median_abs_error_m * 100,
+                h.mean_abs_error_m * 100, row->seconds, row->map_bytes / 1e6);
             out += line;
         }
-        if (pair.shine && pair.tsdf && pair.shine->heldout && pair.tsdf->heldout) {
-            const BenchHeldout& s = *pair.shine->heldout;
+        // Each ShineVDB mode against the TSDF of its size: differences, time and memory ratios.
+        for (const auto& [name, shine] :
+             {std::pair<const char*, const BenchRow*>{"S - T", pair.shine},
+              {"I - T", pair.incremental}}) {
+            if (!shine || !pair.tsdf || !shine->heldout || !pair.tsdf->heldout) continue;
+            const BenchHeldout& s = *shine->heldout;
             const BenchHeldout& t = *pair.tsdf->heldout;
-            std::snprintf(line, sizeof(line), "%-9s %6s %10s %+9.2f %+9.2f %+10.2f %+9.2f %10s\n",
-                          "S - T", (format_size_m(pair.size_m) + " m").c_str(), "",
-                          (s.hit_ratio - t.hit_ratio) * 100,
-                          (s.within_ratio - t.within_ratio) * 100,
-                          (s.median_abs_error_m - t.median_abs_error_m) * 100,
-                          (s.mean_abs_error_m - t.mean_abs_error_m) * 100,
-                          format("x%.3f", static_cast<double>(pair.shine->map_bytes) /
-                                              std::max<std::size_t>(pair.tsdf->map_bytes, 1))
-                              .c_str());
+            std::snprintf(
+                line, sizeof(line), "%-20s %6s %10s %+9.2f %+9.2f %+10.2f %+9.2f %9s %10s\n", name,
+                (format_size_m(pair.size_m) + " m").c_str(), "", (s.hit_ratio - t.hit_ratio) * 100,
+                (s.within_ratio - t.within_ratio) * 100,
+                (s.median_abs_error_m - t.median_abs_error_m) * 100,
+                (s.mean_abs_error_m - t.mean_abs_error_m) * 100,
+                format("x%.1f", shine->seconds / std::max(pair.tsdf->seconds, 1e-9)).c_str(),
+                format("x%.3f", static_cast<double>(shine->map_bytes) /
+                                    std::max<std::size_t>(pair.tsdf->map_bytes, 1))
+                    .c_str());
             out += line;
         }
     }
@@ -559,8 +589,8 @@ std::string bench_to_markdown(const std::vector<BenchRow>& rows, const BenchInfo
     });
     for (const BenchRow* row : sorted) {
         out += "| " + method_label(row->method) + " | " + format_size_m(row->size_m) + " m | " +
-               (row->method == BenchMethod::kShineVdb ? std::to_string(row->iterations) : "-") +
-               " | " + megabytes(row->map_bytes) + " | " + megabytes(row->file_bytes) + " | " +
+               (is_shine(row->method) ? std::to_string(row->iterations) : "-") + " | " +
+               megabytes(row->map_bytes) + " | " + megabytes(row->file_bytes) + " | " +
                format("%.1f", row->seconds) + " | " + format("%.3f", row->seconds_per_frame);
         if (row->metrics) {
             const BenchMetrics& m = *row->metrics;
@@ -590,27 +620,46 @@ std::string bench_to_markdown(const std::vector<BenchRow>& rows, const BenchInfo
                " cm, a miss counts as a failure):\n\n";
         out +=
             "| method | size | rays | rays that hit | rays within | median error | mean error | "
-            "map |\n";
-        out += "| --- | --- | --- | --- | --- | --- | --- | --- |\n";
+            "seconds | map |\n";
+        out += "| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
         for (const BenchRow* row : sorted) {
             if (!row->heldout) continue;
             const BenchHeldout& h = *row->heldout;
-            out += "| " + method_label(row->method) + " | " + format_size_m(row->size_m) + " m | " +
+            out += "| " + mode_label(row->method) + " | " + format_size_m(row->size_m) + " m | " +
                    std::to_string(h.rays) + " | " + format("%.2f %%", h.hit_ratio * 100) + " | " +
                    format("%.2f %%", h.within_ratio * 100) + " | " +
                    centimetres(h.median_abs_error_m) + " | " + centimetres(h.mean_abs_error_m) +
-                   " | " + megabytes(row->map_bytes) + " |\n";
-        }
-        out +=
-            "\n| size | within: ShineVDB - TSDF | hit: ShineVDB - TSDF | median ShineVDB / TSDF "
-            "|\n| --- | --- | --- | --- |\n";
-        for (const BenchRatio& r : compute_ratios(rows)) {
-            if (!r.heldout_within_difference) continue;
-            out += "| " + format_size_m(r.size_m) + " m | " +
-                   format("%+.2f points", *r.heldout_within_difference * 100) + " | " +
-                   format("%+.2f points", *r.heldout_hit_difference * 100) + " | " +
-                   (r.heldout_median_ratio ? format("%.3f", *r.heldout_median_ratio) : "-") +
+                   " | " + format("%.1f", row->seconds) + " | " + megabytes(row->map_bytes) +
                    " |\n";
+        }
+        // Per ShineVDB mode, its differences to the TSDF of each size.
+        for (const BenchMethod method :
+             {BenchMethod::kShineVdb, BenchMethod::kShineVdbIncremental}) {
+            const std::string name =
+                method == BenchMethod::kShineVdb ? "ShineVDB" : "ShineVDB incremental";
+            std::string table;
+            for (const SizePair& pair : pair_by_size(rows)) {
+                const BenchRow* shine =
+                    method == BenchMethod::kShineVdb ? pair.shine : pair.incremental;
+                if (!shine || !pair.tsdf || !shine->heldout || !pair.tsdf->heldout) continue;
+                const BenchHeldout& s = *shine->heldout;
+                const BenchHeldout& t = *pair.tsdf->heldout;
+                table +=
+                    "| " + format_size_m(pair.size_m) + " m | " +
+                    format("%+.2f points", (s.within_ratio - t.within_ratio) * 100) + " | " +
+                    format("%+.2f points", (s.hit_ratio - t.hit_ratio) * 100) + " | " +
+                    (t.median_abs_error_m > 0.0
+                         ? format("%.3f", s.median_abs_error_m / t.median_abs_error_m)
+                         : std::string("-")) +
+                    " | " +
+                    (pair.tsdf->seconds > 0.0 ? format("%.1f", shine->seconds / pair.tsdf->seconds)
+                                              : std::string("-")) +
+                    " |\n";
+            }
+            if (table.empty()) continue;
+            out += "\n| size | within: " + name + " - TSDF | hit: " + name + " - TSDF | median " +
+                   name + " / TSDF | seconds " + name +
+                   " / TSDF |\n| --- | --- | --- | --- | --- |\n" + table;
         }
     }
     out += "\nChecks:\n\n```\n" + format_checks(compute_checks(rows)) + "```\n";
@@ -618,7 +667,8 @@ std::string bench_to_markdown(const std::vector<BenchRow>& rows, const BenchInfo
            (info.reference.empty() ? std::string("none") : info.reference) + "`, " +
            (info.iterations >= 0 ? std::to_string(info.iterations) + " ShineVDB iterations"
                                  : std::string("ShineVDB iterations automatic per leaf size")) +
-           (info.half_features ? ", float16 features" : "") + ", " +
+           (info.half_features ? ", float16 features" : "") + ", ShineVDB modes " +
+           join_modes(info.modes) + ", " +
            (info.threads > 0 ? std::to_string(info.threads) : std::string("all")) +
            " threads, TSDF truncation " + format("%g", info.trunc_voxels) + " voxels" +
            (info.config.empty() ? "" : ", config `" + info.config + "`") + ".\n";

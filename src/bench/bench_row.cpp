@@ -7,17 +7,36 @@
 namespace shine {
 
 std::string method_name(BenchMethod method) {
-    return method == BenchMethod::kShineVdb ? "shinevdb" : "tsdf";
+    switch (method) {
+        case BenchMethod::kShineVdb:
+            return "shinevdb";
+        case BenchMethod::kTsdf:
+            return "tsdf";
+        case BenchMethod::kShineVdbIncremental:
+            return "shinevdb_incremental";
+    }
+    throw Error("method_name: unknown BenchMethod");
 }
 
 std::string method_label(BenchMethod method) {
-    return method == BenchMethod::kShineVdb ? "ShineVDB" : "TSDF";
+    switch (method) {
+        case BenchMethod::kShineVdb:
+            return "ShineVDB";
+        case BenchMethod::kTsdf:
+            return "TSDF";
+        case BenchMethod::kShineVdbIncremental:
+            return "ShineVDB incremental";
+    }
+    throw Error("method_label: unknown BenchMethod");
 }
 
 BenchMethod parse_method_name(const std::string& name) {
-    if (name == "shinevdb") return BenchMethod::kShineVdb;
-    if (name == "tsdf") return BenchMethod::kTsdf;
-    throw DataError("unknown method '" + name + "' (expected shinevdb or tsdf)");
+    for (const BenchMethod method :
+         {BenchMethod::kShineVdb, BenchMethod::kTsdf, BenchMethod::kShineVdbIncremental}) {
+        if (name == method_name(method)) return method;
+    }
+    throw DataError("unknown method '" + name +
+                    "' (expected shinevdb, tsdf or shinevdb_incremental)");
 }
 
 std::string format_size_m(double size_m) {

@@ -12,6 +12,7 @@
 #include "shine/core/progress.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/mapper/batch_mapper.hpp"
+#include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/model/map_file.hpp"
 #include "shine/tsdf/tsdf_file.hpp"
@@ -62,6 +63,39 @@ std::vector<double> parse_sizes_m(const std::string& text) {
     }
     std::sort(sizes.begin(), sizes.end());
     return sizes;
+}
+
+BenchModes parse_modes(const std::string& text) {
+    const std::string where = "--modes '" + text + "'";
+    if (trim(text).empty()) {
+        throw ConfigError(where + ": the list is empty; give batch, incremental or both, e.g. " +
+                          "batch,incremental");
+    }
+    BenchModes modes;
+    modes.batch = false;
+    std::istringstream in(text + ",");  // the sentinel makes a trailing comma an empty entry
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        const std::string value = trim(item);
+        if (value.empty()) {
+            throw ConfigError(where + ": empty entry; separate modes by single commas");
+        }
+        bool* mode = value == "batch"         ? &modes.batch
+                     : value == "incremental" ? &modes.incremental
+                                              : nullptr;
+        if (!mode) {
+            throw ConfigError(where + ": unknown mode '" + value +
+                              "' (expected batch or incremental)");
+        }
+        if (*mode) throw ConfigError(where + ": " + value + " is given twice");
+        *mode = true;
+    }
+    return modes;
+}
+
+std::string format_modes(const BenchModes& modes) {
+    if (modes.batch && modes.incremental) return "batch,incremental";
+    return modes.incremental ? "incremental" : "batch";
 }
 
 MapperConfig shine_config_at(const BenchConfig& config, double size_m) {
@@ -125,6 +159,9 @@ const Scan& BenchScans::scan(std::size_t i, Scan& storage) const {
 std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
                                      const BenchScans& scans, const TriangleMesh* reference,
                                      const fs::path& out_dir) {
+    if (!config.modes.batch && !config.modes.incremental) {
+        throw ConfigError("run_bench_size: no ShineVDB mode to run (BenchConfig::modes)");
+    }
     const std::string tag = format_size_m(size_m) + " m";
     const MapperConfig shine_config = shine_config_at(config, size_m);
     const TsdfMapperConfig tsdf_config = tsdf_config_at(config, size_m);
@@ -144,23 +181,32 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         return to_bench_heldout(
             evaluate_heldout(mesh, scans.sequence(), heldout, heldout_config).total);
     };
+    const auto is_heldout = [&](std::size_t i) {
+        return std::binary_search(heldout.begin(), heldout.end(), i);
+    };
 
     // Both mappers get each scan before the next one is read; their own stats time them apart.
-    BatchMapper shine(shine_config);
+    std::unique_ptr<BatchMapper> shine;
+    if (config.modes.batch) shine = std::make_unique<BatchMapper>(shine_config);
     auto tsdf = std::make_unique<TsdfMapper>(tsdf_config);
     {
         Progress progress("load " + tag, scans.size());
         Scan storage;
         for (std::size_t i = 0; i < scans.size(); ++i) {
-            if (std::binary_search(heldout.begin(), heldout.end(), i)) continue;
+            if (is_heldout(i)) continue;
             const Scan& scan = scans.scan(i, storage);
-            shine.add_scan(scan);
+            if (shine) shine->add_scan(scan);
             tsdf->add_scan(scan);
             progress.update(i + 1);
         }
-        shine.finish_scans();
-        progress.finish(std::to_string(shine.sdf().octree.num_corners()) + " corners, " +
-                        std::to_string(tsdf->volume().active_voxels()) + " voxels");
+        const std::string voxels = std::to_string(tsdf->volume().active_voxels()) + " voxels";
+        if (shine) {
+            shine->finish_scans();
+            progress.finish(std::to_string(shine->sdf().octree.num_corners()) + " corners, " +
+                            voxels);
+        } else {
+            progress.finish(voxels);
+        }
     }
 
     // The TSDF is finished first, so its grids are freed before ShineVDB trains.
@@ -197,38 +243,81 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         progress.finish(std::to_string(mesh.triangles.size()) + " triangles");
     }
 
-    train_with_progress(shine, shine.planned_iterations(), "train " + tag);
-    {
+    // The mesh of a ShineVDB run, read back from its directory, evaluated and scored.
+    const auto evaluate_shine = [&](BenchRow& row, const fs::path& dir, Progress& progress,
+                                    std::size_t step) {
+        if (!reference && heldout.empty()) return;
+        const TriangleMesh mesh = read_ply_mesh(dir / "mesh.ply");
+        if (reference) {
+            progress.update(step, "eval");
+            row.metrics = to_bench_metrics(evaluate_meshes(mesh, *reference, config.eval));
+        }
+        if (!heldout.empty()) {
+            progress.update(step, "held-out scans");
+            row.heldout = score_heldout(mesh);
+        }
+    };
+
+    std::vector<BenchRow> rows;
+    if (shine) {
+        train_with_progress(*shine, shine->planned_iterations(), "train " + tag);
         Progress progress("shine " + tag, 2);
         progress.update(0, "save, bake, mesh");
         const fs::path dir = bench_run_dir(out_dir, BenchMethod::kShineVdb, size_m);
         ensure_directory(dir);
-        const MapProducts products = write_map_products(shine.sdf(), shine.config(), dir);
-        const MappingStats& stats = shine.stats();
+        const MapProducts products = write_map_products(shine->sdf(), shine->config(), dir);
+        const MappingStats& stats = shine->stats();
         const double mapping_seconds = stats.load_seconds + stats.allocate_seconds +
                                        stats.normals_seconds + stats.train_seconds;
         shine_row.frames = stats.frames;
         shine_row.iterations = stats.iterations;
-        shine_row.map_bytes = shine.sdf().memory_bytes();
+        shine_row.map_bytes = shine->sdf().memory_bytes();
         shine_row.file_bytes = file_bytes(dir / "map.vdb");
         shine_row.seconds =
             mapping_seconds + products.save_seconds + products.bake_seconds + products.mesh_seconds;
         shine_row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
-        if (reference || !heldout.empty()) {
-            const TriangleMesh mesh = read_ply_mesh(dir / "mesh.ply");
-            if (reference) {
-                progress.update(1, "eval");
-                shine_row.metrics =
-                    to_bench_metrics(evaluate_meshes(mesh, *reference, config.eval));
-            }
-            if (!heldout.empty()) {
-                progress.update(1, "held-out scans");
-                shine_row.heldout = score_heldout(mesh);
-            }
-        }
+        shine.reset();  // its memory goes to the evaluation and to incremental mode
+        evaluate_shine(shine_row, dir, progress, 1);
         progress.finish(std::to_string(products.mesh.triangles) + " triangles");
+        rows.push_back(shine_row);
     }
-    return {shine_row, tsdf_row};
+    rows.push_back(tsdf_row);
+
+    if (config.modes.incremental) {
+        // As `shine map --mode incremental` maps the scans it is given: read one by one, mapped,
+        // consolidated, products written.
+        std::vector<std::size_t> mapped;
+        for (std::size_t i = 0; i < scans.size(); ++i) {
+            if (!is_heldout(i)) mapped.push_back(i);
+        }
+        const fs::path dir = bench_run_dir(out_dir, BenchMethod::kShineVdbIncremental, size_m);
+        const auto t0 = std::chrono::steady_clock::now();
+        IncrementalSequenceMap run = map_sequence_incremental(
+            shine_config, scans.sequence().subset(mapped), dir, "incremental " + tag);
+        double read_seconds = 0.0;  // not counted, as the other methods get their scans read
+        for (StageSeconds& frame : run.profile.frames) read_seconds += frame[Stage::kLoad];
+        const double wall_seconds = seconds_since(t0) - read_seconds;
+
+        BenchRow row;
+        row.method = BenchMethod::kShineVdbIncremental;
+        row.size_m = size_m;
+        const MappingStats& stats = run.mapper->stats();
+        const double mapping_seconds = stats.load_seconds + stats.allocate_seconds +
+                                       stats.normals_seconds + stats.train_seconds;
+        row.frames = stats.frames;
+        row.iterations = stats.iterations;
+        row.map_bytes = run.mapper->sdf().memory_bytes();
+        row.file_bytes = file_bytes(dir / "map.vdb");
+        row.seconds = wall_seconds;
+        row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
+        const std::size_t triangles = run.products.mesh.triangles;
+        run.mapper.reset();
+        Progress progress("incremental " + tag, 1);
+        evaluate_shine(row, dir, progress, 0);
+        progress.finish(std::to_string(triangles) + " triangles");
+        rows.push_back(row);
+    }
+    return rows;
 }
 
 }  // namespace shine

@@ -263,6 +263,8 @@ RgbImage plot_memory_vs_chamfer(const std::vector<BenchRow>& rows, int width, in
     spec.height = height;
     PlotSeries shine{"ShineVDB (leaf size)", {214, 39, 40}, MarkerShape::kDisc, {}};
     PlotSeries tsdf{"TSDF, VDBFusion (voxel)", {31, 119, 180}, MarkerShape::kSquare, {}};
+    PlotSeries incremental{
+        "ShineVDB incremental (leaf size)", {255, 127, 14}, MarkerShape::kDisc, {}};
     std::vector<const BenchRow*> sorted;
     for (const BenchRow& row : rows) {
         if (row.metrics) sorted.push_back(&row);
@@ -273,12 +275,14 @@ RgbImage plot_memory_vs_chamfer(const std::vector<BenchRow>& rows, int width, in
     std::sort(sorted.begin(), sorted.end(),
               [](const BenchRow* a, const BenchRow* b) { return a->size_m < b->size_m; });
     for (const BenchRow* row : sorted) {
-        PlotSeries& series = row->method == BenchMethod::kShineVdb ? shine : tsdf;
+        PlotSeries& series = row->method == BenchMethod::kShineVdb ? shine
+                             : row->method == BenchMethod::kTsdf   ? tsdf
+                                                                   : incremental;
         series.points.push_back({static_cast<double>(row->map_bytes) / 1e6,
                                  row->metrics->chamfer_l1_m * 100.0,
                                  format_size_m(row->size_m) + " m"});
     }
-    for (PlotSeries* s : {&shine, &tsdf}) {
+    for (PlotSeries* s : {&shine, &tsdf, &incremental}) {
         if (!s->points.empty()) spec.series.push_back(*s);
     }
     return render_plot(spec);

@@ -1,6 +1,7 @@
 // Reports of the memory/accuracy study: CSV and JSON files (with readers, so results can be
 // re-plotted or compared later), terminal tables, the ShineVDB/TSDF ratios per resolution, and the
-// study's checks computed from the rows:
+// study's checks computed from the rows (ratios and checks compare ShineVDB's batch-mode rows with
+// the TSDF; incremental-mode rows appear in the tables, files and the held-out comparison):
 //   (a) ShineVDB's map is smaller than the TSDF map at every resolution;
 //   (b) the smallest ShineVDB map whose Chamfer-L1 is at least as good as the best TSDF result of
 //       the study takes at most 1/4 of that TSDF map's bytes;
@@ -18,7 +19,7 @@ namespace shine {
 /// Check (b)'s bound: ShineVDB map bytes / TSDF map bytes.
 constexpr double kMaxMemoryRatioAtTsdfQuality = 0.25;
 
-/// ShineVDB against TSDF at one resolution where both ran.
+/// ShineVDB (batch mode) against TSDF at one resolution where both ran.
 struct BenchRatio {
     double size_m = 0.0;
     double memory_ratio = 0.0;                ///< ShineVDB map bytes / TSDF map bytes
@@ -66,6 +67,7 @@ struct BenchInfo {
     bool half_features = false;  ///< ShineVDB features stored as float16
     double trunc_voxels = 3.0;   ///< TSDF truncation in voxels
     int holdout_every = 0;       ///< every N-th scan held out and scored (0: none)
+    std::vector<std::string> modes = {"batch"};  ///< ShineVDB's modes: batch, incremental
     double heldout_threshold_m = 0.1;
 };
 
@@ -98,8 +100,10 @@ std::string format_rows_table(const std::vector<BenchRow>& rows);
 /// Terminal table of compute_ratios(): memory ratio, Chamfer ratio, F-score difference.
 std::string format_ratios_table(const std::vector<BenchRatio>& ratios);
 
-/// Terminal table of the held-out figures of the rows that have them, each ShineVDB row followed
-/// by its differences to the TSDF row of its size; empty when no row has any.
+/// Terminal table of the held-out figures (and wall seconds and map memory) of the rows that have
+/// them, per size the TSDF, ShineVDB batch and ShineVDB incremental rows, then each ShineVDB
+/// mode's differences to the TSDF ("S - T" batch, "I - T" incremental; seconds and memory as
+/// ratios); empty when no row has any.
 std::string format_heldout_table(const std::vector<BenchRow>& rows);
 
 /// The checks in words, with the numbers they rest on.

@@ -1,4 +1,5 @@
-// One result of the memory/accuracy study (`shine bench`): one method at one resolution.
+// One result of the memory/accuracy study (`shine bench`): one method (ShineVDB in one mode, or
+// the TSDF baseline) at one resolution.
 #pragma once
 
 #include <cstddef>
@@ -7,15 +8,18 @@
 
 namespace shine {
 
-/// The two methods the study compares.
+/// The methods the study compares (the values keep their order: kShineVdb is batch mode, as in
+/// files written before incremental mode joined the study).
 enum class BenchMethod {
-    kShineVdb,  ///< the neural map (leaf size = resolution)
-    kTsdf,      ///< TSDF fusion with VDBFusion's algorithm (voxel size = resolution)
+    kShineVdb,             ///< the neural map in batch mode (leaf size = resolution)
+    kTsdf,                 ///< TSDF fusion with VDBFusion's algorithm (voxel size = resolution)
+    kShineVdbIncremental,  ///< the neural map in incremental mode (leaf size = resolution)
 };
 
-/// "shinevdb" or "tsdf": the name used in file names, the CSV and the JSON.
+/// "shinevdb", "tsdf" or "shinevdb_incremental": the name used in file names, the CSV and the
+/// JSON.
 std::string method_name(BenchMethod method);
-/// "ShineVDB" or "TSDF": the name used in tables and plots.
+/// "ShineVDB", "TSDF" or "ShineVDB incremental": the name used in tables and plots.
 std::string method_label(BenchMethod method);
 /// Inverse of method_name(); throws DataError naming `name` for anything else.
 BenchMethod parse_method_name(const std::string& name);
@@ -53,7 +57,10 @@ struct BenchRow {
     std::size_t map_bytes = 0;   ///< ShineVDB: features + OpenVDB structure + decoder
                                  ///< (NeuralSdf::memory_bytes); TSDF: memUsage() of TSDF + weight
     std::size_t file_bytes = 0;  ///< map.vdb or tsdf.vdb on disk
-    double seconds = 0.0;  ///< scans in memory -> mesh on disk (reading scans and eval excluded)
+    /// Wall time from the scans in memory to the mesh on disk (reading scans and eval excluded):
+    /// batch and TSDF as the sum of their stages (they take the scans in turns), incremental
+    /// mode measured around its whole run.
+    double seconds = 0.0;
     double seconds_per_frame = 0.0;       ///< per-frame mapping time, as in the stats.json files
     std::optional<BenchMetrics> metrics;  ///< empty when there is no reference mesh
     std::optional<BenchHeldout> heldout;  ///< empty when no scan was held out

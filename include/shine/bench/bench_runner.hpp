@@ -1,5 +1,6 @@
-// The memory/accuracy study behind `shine bench`: ShineVDB and the TSDF baseline (VDBFusion's
-// algorithm) on the same scans at a list of resolutions, each evaluated against one reference.
+// The memory/accuracy study behind `shine bench`: ShineVDB (batch mode, and with
+// BenchConfig::modes incremental mode too) and the TSDF baseline (VDBFusion's algorithm) on the
+// same scans at a list of resolutions, each evaluated against one reference.
 //
 // At resolution s, ShineVDB runs with leaf size s (the rest of its configuration unchanged) and
 // the TSDF with voxel size s and truncation trunc_voxels * s (VDBFusion's 3 voxels; its other
@@ -8,9 +9,15 @@
 // in the cache budget, otherwise once per resolution (each scan then goes to both mappers before
 // the next is read).
 //
+// Incremental mode runs after them, as `shine map --mode incremental` runs
+// (map_sequence_incremental: the scans one by one, the consolidation, the products), reading its
+// scans from disk again.
+//
 // Per resolution the products are written as the single-method commands write them:
-//   OUT/shinevdb_<s>/map.vdb, surface.vdb, mesh.ply   (as `shine map`)
-//   OUT/tsdf_<s>/tsdf.vdb, mesh.ply                    (as `shine tsdf`)
+//   OUT/shinevdb_<s>/map.vdb, surface.vdb, mesh.ply               (as `shine map`)
+//   OUT/tsdf_<s>/tsdf.vdb, mesh.ply                                (as `shine tsdf`)
+//   OUT/shinevdb_incremental_<s>/map.vdb, surface.vdb, mesh.ply   (as `shine map --mode
+//                                                                   incremental`)
 #pragma once
 
 #include <cstddef>
@@ -28,9 +35,16 @@
 
 namespace shine {
 
+/// The modes ShineVDB runs in during a study (at least one).
+struct BenchModes {
+    bool batch = true;
+    bool incremental = false;
+};
+
 /// Settings of a study; every member has a default.
 struct BenchConfig {
     std::vector<double> sizes_m = {0.1, 0.2, 0.5, 1.0};  ///< resolutions, metres
+    BenchModes modes;
     MapperConfig shine;     ///< ShineVDB's configuration; the leaf size is set per resolution
     TsdfMapperConfig tsdf;  ///< TSDF configuration; voxel size and truncation set per resolution,
                             ///< preprocessing replaced by shine.preprocess
@@ -52,6 +66,14 @@ struct BenchConfig {
 /// ConfigError naming --sizes-m and the value if the list is empty, has an empty entry, an entry
 /// that is not a number, a non-positive or non-finite size, or a size given twice.
 std::vector<double> parse_sizes_m(const std::string& text);
+
+/// Parses a comma-separated list of ShineVDB modes ("batch", "incremental", "batch,incremental"
+/// in any order). Throws ConfigError naming --modes and the value if the list is empty, has an
+/// empty entry, an unknown mode or a mode given twice.
+BenchModes parse_modes(const std::string& text);
+
+/// The modes as --modes takes them: "batch", "incremental" or "batch,incremental".
+std::string format_modes(const BenchModes& modes);
 
 /// ShineVDB's configuration at `size_m` (leaf size), finalized.
 MapperConfig shine_config_at(const BenchConfig& config, double size_m);
@@ -82,10 +104,11 @@ class BenchScans {
     std::vector<Scan> cache_;
 };
 
-/// Runs ShineVDB and the TSDF baseline at `size_m` on `scans` (but config.heldout_frames),
-/// writes their products under `out_dir` (see the file comment), evaluates both meshes against
-/// `reference` when it is not null and scores them on the held-out scans when there are any.
-/// Returns the ShineVDB row, then the TSDF row. Progress lines name the stage and the size.
+/// Runs ShineVDB in config.modes and the TSDF baseline at `size_m` on `scans` (but
+/// config.heldout_frames), writes their products under `out_dir` (see the file comment),
+/// evaluates every mesh against `reference` when it is not null and scores them on the held-out
+/// scans when there are any. Returns the rows in the order ShineVDB batch (if run), TSDF,
+/// ShineVDB incremental (if run). Progress lines name the stage and the size.
 std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
                                      const BenchScans& scans, const TriangleMesh* reference,
                                      const std::filesystem::path& out_dir);
