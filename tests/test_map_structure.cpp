@@ -195,3 +195,30 @@ TEST(FeatureTable, Float16RoundsToNearestAndHalvesTheBytes) {
     EXPECT_EQ(parse_feature_precision("float16", "k"), FeaturePrecision::kFloat16);
     EXPECT_THROW(parse_feature_precision("fp16", "map.feature_precision"), ConfigError);
 }
+
+TEST(FeatureOctreeClone, IsADeepCopyThatKeepsItsRowsWhileTheOriginalGrows) {
+    FeatureOctreeConfig config;
+    config.leaf_size_m = 0.2;
+    FeatureOctree octree(config);
+    octree.allocate_cells(plane_points(0.0f, 0.0f, 2.0f, 0.1f));
+    const FeatureOctree copy = octree.clone();
+    const auto rows = all_rows(octree);
+    ASSERT_EQ(all_rows(copy), rows);
+    ASSERT_EQ(copy.num_corners(), octree.num_corners());
+    std::vector<float> before(static_cast<std::size_t>(config.feature_dim));
+    copy.features().get_row(0, before.data());
+
+    // The original grows and its first row changes: the copy keeps both as they were.
+    octree.allocate_cells(plane_points(5.0f, 5.0f, 2.0f, 0.1f));
+    const std::vector<float> changed(static_cast<std::size_t>(config.feature_dim), 7.0f);
+    octree.features().set_row(0, changed.data());
+    EXPECT_GT(octree.num_corners(), copy.num_corners());
+    EXPECT_EQ(all_rows(copy), rows);
+    std::vector<float> after(before.size());
+    copy.features().get_row(0, after.data());
+    EXPECT_EQ(after, before);
+    LevelCorners corners;
+    EXPECT_FALSE(copy.find_cell(0, Eigen::Vector3f(6.0f, 6.0f, 0.0f), corners));
+    EXPECT_TRUE(octree.find_cell(0, Eigen::Vector3f(6.0f, 6.0f, 0.0f), corners));
+    EXPECT_TRUE(copy.find_cell(0, Eigen::Vector3f(1.0f, 1.0f, 0.0f), corners));
+}

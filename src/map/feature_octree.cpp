@@ -329,6 +329,18 @@ FeatureOctree::~FeatureOctree() = default;
 FeatureOctree::FeatureOctree(FeatureOctree&&) noexcept = default;
 FeatureOctree& FeatureOctree::operator=(FeatureOctree&&) noexcept = default;
 
+FeatureOctree FeatureOctree::clone() const {
+    FeatureOctree copy(config_);
+    copy.features_ = features_;
+    copy.impl_->levels = impl_->levels;
+    // The level structs share their grids after the copy above: each gets its own (a leaf's
+    // transient data, its index into `leaves`, is copied with it).
+    for (LevelIndex& level : copy.impl_->levels) {
+        if (level.grid) level.grid = level.grid->deepCopy();
+    }
+    return copy;
+}
+
 double FeatureOctree::cell_size_m(int level) const {
     return config_.leaf_size_m * static_cast<double>(1 << level);
 }

@@ -73,6 +73,8 @@ class FeatureOctree {
     ~FeatureOctree();
     FeatureOctree(FeatureOctree&&) noexcept;
     FeatureOctree& operator=(FeatureOctree&&) noexcept;
+    /// A deep copy (grids, rows, features): a snapshot that stays valid while this one grows.
+    FeatureOctree clone() const;
 
     const FeatureOctreeConfig& config() const { return config_; }
     int num_levels() const { return config_.num_levels; }

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "shine/map/feature_octree.hpp"
@@ -26,11 +27,20 @@ struct NeuralSdf {
 
     NeuralSdf(const FeatureOctreeConfig& octree_config, const DecoderConfig& decoder_config)
         : octree(octree_config), decoder(decoder_config) {}
+    NeuralSdf(FeatureOctree&& octree_in, const Decoder& decoder_in)
+        : octree(std::move(octree_in)), decoder(decoder_in) {}
 
     /// SDF of many points (map frame), in parallel. valid[i] = 0 where the mask excludes point i
     /// (its sdf is then 0).
     void query(const std::vector<Eigen::Vector3f>& points_map, QueryMask mask,
                std::vector<float>& sdf_m, std::vector<std::uint8_t>& valid) const;
+
+    /// A deep copy: a snapshot that registration reads while training changes this map.
+    NeuralSdf clone() const {
+        NeuralSdf copy(octree.clone(), decoder);
+        copy.origin_world_m = origin_world_m;
+        return copy;
+    }
 
     /// Bytes of the map: features, OpenVDB structure and decoder weights.
     std::size_t memory_bytes() const {
