@@ -76,12 +76,15 @@ nlohmann::json read_stats(const fs::path& run_dir) {
 
 struct RunResult {
     double wall_s = 0.0;
-    double per_scan_s = 0.0;  ///< 0 when the method has no per-scan time (batch)
+    double per_scan_s = 0.0;       ///< 0 when the method has no per-scan time (batch)
+    double mean_per_scan_s = 0.0;  ///< "no poses" only
 };
 
 RunResult run_one(const SpeedStudyOptions& o, const fs::path& exe, const std::string& method,
                   int round) {
-    const fs::path dir = o.out / "speed" / (method + "_" + std::to_string(round));
+    std::string name = method;
+    std::replace(name.begin(), name.end(), ' ', '_');
+    const fs::path dir = o.out / "speed" / (name + "_" + std::to_string(round));
     std::error_code ignored;
     fs::remove_all(dir, ignored);
     fs::create_directories(dir.parent_path());
@@ -96,8 +99,9 @@ RunResult run_one(const SpeedStudyOptions& o, const fs::path& exe, const std::st
     } else {
         cmd += " map " + quoted(o.data.string()) + common + " " + o.shine_args;
         if (method == "incremental") cmd += " --mode incremental";
+        if (method == "no poses") cmd += " --mode incremental --poses estimate";
     }
-    const fs::path log = o.out / "speed" / (method + "_" + std::to_string(round) + ".log");
+    const fs::path log = o.out / "speed" / (name + "_" + std::to_string(round) + ".log");
     cmd += " > " + quoted(log.string()) + " 2>&1";
 
     const auto start = std::chrono::steady_clock::now();
@@ -114,6 +118,9 @@ RunResult run_one(const SpeedStudyOptions& o, const fs::path& exe, const std::st
         r.per_scan_s = frames > 0 ? stats.at("seconds").at("integrate").get<double>() / frames : 0;
     } else if (method == "incremental") {
         r.per_scan_s = stats.at("incremental").at("median_seconds_per_frame").get<double>();
+    } else if (method == "no poses") {
+        r.per_scan_s = stats.at("odometry").at("median_seconds_per_scan").get<double>();
+        r.mean_per_scan_s = stats.at("keyframes").at("mean_seconds_per_scan").get<double>();
     }
     return r;
 }
@@ -123,7 +130,9 @@ RunResult run_one(const SpeedStudyOptions& o, const fs::path& exe, const std::st
 std::vector<SpeedRow> run_speed_study(const SpeedStudyOptions& o) {
     if (o.rounds < 1) throw ConfigError("bench --speed: --rounds must be at least 1");
     const fs::path exe = self_executable();
-    const std::vector<std::string> methods = {"tsdf", "batch", "incremental"};
+    const std::vector<std::string> methods =
+        o.data_has_poses ? std::vector<std::string>{"tsdf", "batch", "incremental", "no poses"}
+                         : std::vector<std::string>{"no poses"};
     std::vector<SpeedRow> rows(methods.size());
     for (std::size_t m = 0; m < methods.size(); ++m) rows[m].method = methods[m];
     for (int round = 1; round <= o.rounds; ++round) {
@@ -137,6 +146,9 @@ std::vector<SpeedRow> run_speed_study(const SpeedStudyOptions& o) {
             const RunResult r = run_one(o, exe, methods[m], round);
             rows[m].wall_seconds.push_back(r.wall_s);
             if (r.per_scan_s > 0.0) rows[m].per_scan_seconds.push_back(r.per_scan_s);
+            if (r.mean_per_scan_s > 0.0) {
+                rows[m].mean_per_scan_seconds.push_back(r.mean_per_scan_s);
+            }
         }
     }
 
@@ -148,7 +160,8 @@ std::vector<SpeedRow> run_speed_study(const SpeedStudyOptions& o) {
     j["shine_args"] = o.shine_args;
     for (const SpeedRow& row : rows) {
         j["methods"][row.method] = {{"wall_seconds", row.wall_seconds},
-                                    {"per_scan_seconds", row.per_scan_seconds}};
+                                    {"per_scan_seconds", row.per_scan_seconds},
+                                    {"mean_per_scan_seconds", row.mean_per_scan_seconds}};
     }
     write_stream_atomically(o.out / "speed.json", [&](std::ostream& os) { os << j.dump(2); });
     write_stream_atomically(o.out / "speed.md",
@@ -170,11 +183,13 @@ std::string format_speed_table(const std::vector<SpeedRow>& rows) {
         return out;
     };
     std::ostringstream s;
-    s << "| run | median per scan | whole run | whole run / TSDF | per scan / TSDF |\n"
-      << "| --- | --- | --- | --- | --- |\n";
+    s << "| run | median per scan | mean per scan | whole run | whole run / TSDF | per scan / "
+         "TSDF |\n"
+      << "| --- | --- | --- | --- | --- | --- |\n";
     for (const SpeedRow& r : rows) {
         s << "| " << r.method << " | " << with_range(r.per_scan_seconds, ms) << " | "
-          << with_range(r.wall_seconds, secs) << " | ";
+          << with_range(r.mean_per_scan_seconds, ms) << " | " << with_range(r.wall_seconds, secs)
+          << " | ";
         if (tsdf && &r != tsdf) {
             s << with_range(round_ratios(r.wall_seconds, tsdf->wall_seconds), ratio) << " | "
               << with_range(round_ratios(r.per_scan_seconds, tsdf->per_scan_seconds), ratio);

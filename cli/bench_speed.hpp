@@ -1,7 +1,9 @@
 // `shine bench --speed`: the speed table of ShineVDB against the TSDF baseline, from one
 // alternated run. Each round maps the same scans three times, in a rotating order -- the TSDF
 // baseline configured as VDBFusion runs (0.1 m voxels, 0.3 m truncation, every point, no hole
-// filling), ShineVDB batch and ShineVDB incremental at the configured leaf (0.2 m by default) --
+// filling), ShineVDB batch and ShineVDB incremental at the configured leaf (0.2 m by default),
+// and incremental without the poses (odometry; keyframe_policy.hpp) -- data without poses times
+// that run alone --
 // each as its own `shine` process, so that no run inherits another's caches or allocations. A
 // shared, noisy machine is compared side by side: the ratios are taken within a round, then their
 // median over the rounds is reported with its range.
@@ -21,14 +23,20 @@ struct SpeedStudyOptions {
     int rounds = 3;              ///< alternated rounds
     int threads = 2;             ///< worker threads of every run
     double tsdf_voxel_m = 0.1;   ///< the TSDF baseline's voxel (truncation: 3 voxels)
+    /// Whether the data has poses: without, only the run without poses can be timed.
+    bool data_has_poses = true;
     bool quiet = false;
 };
 
 /// One method's figures over the rounds.
 struct SpeedRow {
-    std::string method;                    ///< "tsdf", "batch", "incremental"
+    /// "tsdf", "batch", "incremental", "no poses" (incremental, every pose estimated)
+    std::string method;
     std::vector<double> wall_seconds;      ///< whole run, measured around the process
     std::vector<double> per_scan_seconds;  ///< median per scan (TSDF: integration / scans)
+    /// "no poses": the mean wall time a scan, load to end of mapping (what a sensor's rate
+    /// must cover), the deferred scans' catch-up after the last scan not included.
+    std::vector<double> mean_per_scan_seconds;
 };
 
 /// Runs the study, writes OUT/speed.md and OUT/speed.json and returns the rows. Throws Error

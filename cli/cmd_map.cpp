@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <optional>
 
 #include "cli_common.hpp"
@@ -62,7 +63,8 @@ struct MapOptions {
     bool full_features = false;
     std::string mode = "batch";
     int mesh_every = -1;
-    double max_map_mb = -1.0;  ///< < 0: the configuration's map.max_map_mb
+    double max_map_mb = -1.0;       ///< < 0: the configuration's map.max_map_mb
+    double max_ms_per_scan = -1.0;  ///< < 0: the configuration's keyframes.max_ms_per_scan
     bool profile = false;
     std::string from;                  ///< --from: the saved map (folder or map.vdb) to continue
     std::string resume_dir;            ///< continue the interrupted run in this output directory
@@ -214,6 +216,42 @@ void add_incremental_stats(const IncrementalSequenceMap& mapped, nlohmann::json&
 
 /// The odometry's per-scan records and a summary (seconds per scan: odometry plus mapping, wall
 /// clock from the scan's load to the end of its mapping).
+/// What the keyframe policy did (stats.json "keyframes").
+nlohmann::json keyframes_to_json(const KeyframePolicy& policy,
+                                 const IncrementalSequenceMap& mapped) {
+    const KeyframeConfig& c = policy.config();
+    const KeyframeCounts& n = policy.counts();
+    std::vector<double> trained_s;
+    std::vector<double> deferred_s;
+    for (std::size_t i = 0;
+         i < mapped.keyframe_choices.size() && i < mapped.scan_wall_seconds.size(); ++i) {
+        (mapped.keyframe_choices[i].train ? trained_s : deferred_s)
+            .push_back(mapped.scan_wall_seconds[i]);
+    }
+    return {
+        {"enabled", c.enabled},
+        {"min_translation_m", c.min_translation_m},
+        {"min_rotation_deg", c.min_rotation_deg},
+        {"max_interval_scans", c.max_interval_scans},
+        {"min_coverage", c.min_coverage},
+        {"max_ms_per_scan", c.max_ms_per_scan},
+        {"trained", n.trained},
+        {"deferred", n.deferred},
+        {"deferred_over_budget", n.over_budget},
+        {"deferred_while_busy", n.busy},
+        {"background_training", c.enabled && c.max_ms_per_scan > 0.0},
+        {"caught_up", n.caught_up},
+        {"skipped", n.skipped},
+        {"catch_up_seconds", mapped.catch_up_seconds},
+        {"median_seconds_per_trained_scan", median(trained_s)},
+        {"median_seconds_per_deferred_scan", median(deferred_s)},
+        {"mean_seconds_per_scan", mapped.scan_wall_seconds.empty()
+                                      ? 0.0
+                                      : std::accumulate(mapped.scan_wall_seconds.begin(),
+                                                        mapped.scan_wall_seconds.end(), 0.0) /
+                                            static_cast<double>(mapped.scan_wall_seconds.size())}};
+}
+
 void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& json) {
     const ScanOdometry& odometry = *mapped.odometry;
     nlohmann::json scans = nlohmann::json::array();
@@ -243,6 +281,15 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
              {"sweep_estimated", r.sweep_estimated},
              {"sweep_twist", std::vector<double>(r.sweep_twist, r.sweep_twist + 6)},
              {"seconds", r.seconds}});
+        if (i < mapped.keyframe_choices.size()) {
+            const KeyframeChoice& k = mapped.keyframe_choices[i];
+            scans.back()["trained"] = k.train;
+            scans.back()["keyframe_reason"] = to_string(k.reason);
+        }
+        // Load to the end of its mapping (a resumed run has them for its own scans only).
+        if (mapped.scan_wall_seconds.size() == odometry.records().size()) {
+            scans.back()["wall_seconds"] = mapped.scan_wall_seconds[i];
+        }
     }
     const OdometryConfig& c = odometry.config();
     json["odometry"] = {{"poses", "estimated"},
@@ -256,6 +303,7 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
                         {"median_seconds_per_scan", median(mapped.scan_wall_seconds)},
                         {"median_registration_seconds", median(registration_seconds)},
                         {"scans", scans}};
+    if (mapped.keyframes) json["keyframes"] = keyframes_to_json(*mapped.keyframes, mapped);
 }
 
 /// What deskewing did (stats.json "deskew").
@@ -382,6 +430,8 @@ MapperConfig config_from_options(const MapOptions& opt) {
     if (opt.full_features) config.octree.feature_precision = FeaturePrecision::kFloat32;
     if (opt.mesh_every >= 0) config.incremental.mesh_every = opt.mesh_every;
     if (opt.max_map_mb >= 0.0) config.max_map_mb = opt.max_map_mb;
+    if (opt.max_ms_per_scan >= 0.0)
+        config.incremental.keyframes.max_ms_per_scan = opt.max_ms_per_scan;
     if (opt.deskew) config.deskew.mode = DeskewMode::kOn;
     if (opt.no_deskew) config.deskew.mode = DeskewMode::kOff;
     if (opt.no_refine) {
@@ -515,6 +565,13 @@ int run_map(const MapOptions& given_options) {
         throw ConfigError("--holdout-every scores the map on held-out scans at their poses, but '" +
                           data.string() +
                           "' has none: map without --holdout-every, or give a pose file");
+    }
+    if (config.incremental.keyframes.max_ms_per_scan > 0.0 &&
+        !(incremental && config.odometry.estimate_poses)) {
+        throw ConfigError(
+            "--max-ms-per-scan (keyframes.max_ms_per_scan) is the budget of incremental mode "
+            "without poses, whose tracking it keeps in time: add --mode incremental and "
+            "--poses estimate (or map data without a pose file), or drop the budget");
     }
     if (config.odometry.estimate_poses && selected.has_poses() && !resuming) {
         std::printf(
@@ -761,6 +818,18 @@ int run_map(const MapOptions& given_options) {
         std::printf("odometry: %zu poses (%s), median %.3f s/scan with mapping; wrote %s\n",
                     odometry_map->odometry->poses().size(), counts.c_str(),
                     o["median_seconds_per_scan"].get<double>(), (out / "poses.txt").c_str());
+        if (json.contains("keyframes") && json["keyframes"]["enabled"].get<bool>()) {
+            const nlohmann::json& k = json["keyframes"];
+            std::printf(
+                "keyframes: %d scans trained when they came (median %.3f s/scan), %d deferred "
+                "(median %.3f s/scan; %d by the budget, %d while the background training was "
+                "busy), %d caught up after the last scan in %.1f s, %d skipped\n",
+                k["trained"].get<int>(), k["median_seconds_per_trained_scan"].get<double>(),
+                k["deferred"].get<int>(), k["median_seconds_per_deferred_scan"].get<double>(),
+                k["deferred_over_budget"].get<int>(), k["deferred_while_busy"].get<int>(),
+                k["caught_up"].get<int>(), k["catch_up_seconds"].get<double>(),
+                k["skipped"].get<int>());
+        }
     }
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
                 (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), products.mesh.triangles);
@@ -838,6 +907,11 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
                     "batch (all scans, decoder trained) or incremental (scan by scan, pretrained "
                     "frozen decoder, importance weights against forgetting)")
         ->capture_default_str();
+    cmd->add_option("--max-ms-per-scan", opt->max_ms_per_scan,
+                    "Incremental mode without poses: the real-time budget of a scan in ms; the "
+                    "keyframes train in the background and are deferred when the training or the "
+                    "budget cannot take them, registration never (docs/realtime.md)")
+        ->check(CLI::NonNegativeNumber);
     cmd->add_option("--mesh-every", opt->mesh_every,
                     "Incremental mode: write OUT/progress/mesh_NNNNNN.ply every K frames");
     add_scan_selection_options(cmd, opt->first_frame, opt->last_frame, opt->frame_step,

@@ -293,7 +293,9 @@ TEST(ScanOdometry, YawHypothesesFindATurnTheLocalRegistrationMisses) {
     };
     const auto [local, local_m, local_rad] = run(1);
     EXPECT_EQ(local.yaw_hypotheses, 0);
-    EXPECT_LT(local.icp_inlier_ratio, 0.5);
+    // Short of the fitness that sends ICP to the headings (0.47 measured with the default
+    // registration voxels of 0.5 m, 0.56 with 0.75 m).
+    EXPECT_LT(local.icp_inlier_ratio, OdometryConfig{}.icp_min_inlier_ratio);
     EXPECT_GT(local_rad, 0.1) << "the local registration found the turn by itself";
 
     const auto [found, found_m, found_rad] = run(12);

@@ -8,7 +8,7 @@
 namespace shine {
 namespace {
 const std::string kMagic = "SHINE-CHECKPOINT";
-constexpr std::uint32_t kFormatVersion = 2;
+constexpr std::uint32_t kFormatVersion = 3;  // 3: frame statistics say whether trained (keyframes)
 constexpr std::uint32_t kByteOrderMark = 0x01020304u;
 }  // namespace
 

@@ -622,6 +622,26 @@ void IncrementalMapper::replay_scan(const Scan& scan) {
     frames_.push_back(frame);  // compared with the stored frames by load_state()
 }
 
+const IncrementalFrameStats& IncrementalMapper::add_scan_untrained(const Scan& scan) {
+    const auto frame_start = std::chrono::steady_clock::now();
+    IncrementalFrameStats frame;
+    frame.trained = false;
+    preprocess_and_allocate(scan, frame);
+    estimate_current_normals(frame);
+    frame.total_seconds = seconds_since(frame_start);
+    frame.stages[Stage::kPreprocess] =
+        frame.total_seconds - frame.allocate_seconds - frame.normals_seconds;
+    frame.stages[Stage::kAllocate] = frame.allocate_seconds;
+    frame.stages[Stage::kNormals] = frame.normals_seconds;
+    stats_.load_seconds += frame.preprocess_seconds;
+    stats_.allocate_seconds += frame.allocate_seconds;
+    stats_.normals_seconds += frame.normals_seconds;
+    ++stats_.frames;
+    stats_.rays += frame.rays;
+    frames_.push_back(frame);
+    return frames_.back();
+}
+
 const ConsolidationStats& IncrementalMapper::consolidate(
     int steps, const std::function<void(int, int)>& progress) {
     require_training_state("consolidate");
@@ -791,7 +811,9 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
 
 double IncrementalMapper::median_frame_seconds() const {
     std::vector<double> seconds;
-    for (const auto& f : frames_) seconds.push_back(f.total_seconds);
+    for (const auto& f : frames_) {
+        if (f.trained) seconds.push_back(f.total_seconds);
+    }
     return median(std::move(seconds));
 }
 

@@ -3,10 +3,13 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_invoke.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <optional>
+#include <thread>
 #include <type_traits>
 
 #include "shine/core/atomic_file.hpp"
@@ -15,6 +18,7 @@
 #include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/tum.hpp"
+#include "shine/mapper/background_training.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/odometry/se3.hpp"
 
@@ -88,6 +92,13 @@ void write_incremental_checkpoint(const RunControl& control, const IncrementalSe
                          // Only with odometry (its own tagged section): the checkpoints of
                          // runs with given poses keep their layout.
                          if (result.odometry) result.odometry->save(out);
+                         if (result.keyframes) {
+                             result.keyframes->save(out);
+                             static_assert(std::is_trivially_copyable_v<KeyframeChoice>);
+                             out.array(result.keyframe_choices.data(), frames_done);
+                             out.array(std::vector<std::uint64_t>(result.deferred.begin(),
+                                                                  result.deferred.end()));
+                         }
                          result.mapper->save_state(out);
                          static_assert(std::is_trivially_copyable_v<StageSeconds>);
                          out.array(result.profile.frames);
@@ -131,6 +142,18 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
                                            " frames done");
         }
     }
+    if (result.keyframes) {
+        result.keyframes->load(in);
+        result.keyframe_choices = in.array<KeyframeChoice>("keyframe choices");
+        if (result.keyframe_choices.size() != frames_done) {
+            in.fail("keyframe choices", std::to_string(result.keyframe_choices.size()) + " for " +
+                                            std::to_string(frames_done) + " frames done");
+        }
+        for (const std::uint64_t j : in.array<std::uint64_t>("deferred scans")) {
+            if (j >= frames_done) in.fail("deferred scans", "name a scan not done yet");
+            result.deferred.push_back(static_cast<std::size_t>(j));
+        }
+    }
     {
         Progress progress(progress_tag.empty() ? "replay" : "replay " + progress_tag, frames_done);
         for (std::size_t i = 0; i < frames_done; ++i) {
@@ -138,6 +161,11 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
             if (result.odometry) {
                 scan.T_world_sensor = result.odometry->poses()[i];
                 if (!result.odometry->mapped(i)) continue;
+            }
+            if (result.keyframes && !result.keyframe_choices[i].train) {
+                // Deferred: not in the map yet, but in the odometry's ICP reference, as measured.
+                result.odometry->remember_scan(scan);
+                continue;
             }
             if (deskew) {
                 deskew_for_mapping(scan, sequence, i, *deskew, result.odometry.get(),
@@ -164,6 +192,36 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
     }
     in.expect_end();
     return static_cast<std::size_t>(frames_done);
+}
+/// The deferred scans after the last one (keyframe_policy.hpp): each loaded again, placed at its
+/// estimated pose, deskewed as it would have been, and integrated untrained, in order.
+void catch_up_deferred(const ScanSequence& sequence, const MapperConfig& config, bool deskew,
+                       IncrementalSequenceMap& result, const std::string& progress_tag) {
+    const auto start = std::chrono::steady_clock::now();
+    Progress progress(progress_tag.empty() ? "catch up" : "catch up " + progress_tag,
+                      result.deferred.size());
+    std::size_t done = 0;
+    StageSeconds stages;
+    for (const std::size_t i : result.deferred) {
+        const auto t_load = std::chrono::steady_clock::now();
+        Scan scan = sequence.load(i);
+        stages[Stage::kLoad] += seconds_since(t_load);
+        scan.T_world_sensor = result.odometry->poses().at(i);
+        if (deskew) {
+            deskew_for_mapping(scan, sequence, i, config.deskew, result.odometry.get(),
+                               result.deskew);
+        }
+        stages += result.mapper->add_scan_untrained(scan).stages;
+        progress.update(++done);
+    }
+    result.keyframes->counts().caught_up += result.deferred.size();
+    result.deferred.clear();
+    result.catch_up_seconds = seconds_since(start);
+    result.profile.run += stages;
+    char detail[64];
+    std::snprintf(detail, sizeof(detail), "%zu deferred scans, %.2f s", done,
+                  result.catch_up_seconds);
+    progress.finish(detail);
 }
 }  // namespace
 
@@ -205,6 +263,7 @@ IncrementalSequenceMap map_sequence_incremental(
     IncrementalMapper& mapper = *result.mapper;
     if (config.odometry.estimate_poses) {
         result.odometry = std::make_unique<ScanOdometry>(config.odometry);
+        result.keyframes = std::make_unique<KeyframePolicy>(config.incremental.keyframes);
     }
     const bool checkpoints = control && !control->checkpoint_path.empty();
     const bool deskew =
@@ -216,6 +275,18 @@ IncrementalSequenceMap map_sequence_incremental(
                                          deskew ? &config.deskew : nullptr);
     }
     CheckpointClock clock(checkpoints ? control->checkpoint_interval_s : 0.0);
+    // A test hook: SHINE_TEST_TRAINING_DELAY_MS makes each trained scan that much slower, as on a
+    // slower machine, to check that a budget (keyframes.max_ms_per_scan) is kept.
+    const std::chrono::milliseconds training_delay(
+        std::getenv("SHINE_TEST_TRAINING_DELAY_MS")
+            ? std::max(0, std::atoi(std::getenv("SHINE_TEST_TRAINING_DELAY_MS")))
+            : 0);
+    // With a budget, the keyframes train in the background (background_training.hpp).
+    std::unique_ptr<BackgroundTraining> trainer;
+    if (result.keyframes && config.incremental.keyframes.enabled &&
+        config.incremental.keyframes.max_ms_per_scan > 0.0) {
+        trainer = std::make_unique<BackgroundTraining>(mapper);
+    }
     {
         Progress progress(progress_tag.empty() ? "map" : "map " + progress_tag, sequence.size());
         if (first_frame > 0) progress.update(first_frame, "resumed");
@@ -245,6 +316,27 @@ IncrementalSequenceMap map_sequence_incremental(
             }
             return result.odometry->prepare(scan, sweep ? &*sweep : nullptr);
         };
+        // Loads and prepares scan j (when there is one) into `ahead`; an error is kept for j's
+        // turn.
+        const auto prepare_ahead = [&](std::size_t j) {
+            if (j >= sequence.size()) return;
+            ahead.emplace();
+            ahead->index = j;
+            try {
+                load_scan(j, ahead->scan, ahead->load_seconds);
+                ahead->prepared = prepare_scan(j, ahead->scan);
+            } catch (...) {
+                ahead->error = std::current_exception();
+            }
+        };
+        // A trained scan's statistics and its stage profile, when the trainer hands them over.
+        const auto collect_trained = [&] {
+            if (!trainer) return;
+            trainer->wait();
+            if (std::optional<TrainedScan> done = trainer->take_finished()) {
+                result.profile.frames.push_back(done->stats.stages);
+            }
+        };
         for (std::size_t i = first_frame; i < sequence.size(); ++i) {
             const auto t_scan = std::chrono::steady_clock::now();
             Scan scan;
@@ -262,7 +354,16 @@ IncrementalSequenceMap map_sequence_incremental(
             const OdometryRecord* pose = nullptr;
             if (result.odometry) {
                 if (!prepared) prepared = prepare_scan(i, scan);
-                pose = &result.odometry->finish(std::move(*prepared), mapper.sdf());
+                if (trainer) {
+                    // The map as the last trained keyframe left it: registration never waits.
+                    if (std::optional<TrainedScan> done = trainer->take_finished()) {
+                        result.profile.frames.push_back(done->stats.stages);
+                    }
+                    const std::shared_ptr<const NeuralSdf> map = trainer->snapshot();
+                    pose = &result.odometry->finish(std::move(*prepared), *map);
+                } else {
+                    pose = &result.odometry->finish(std::move(*prepared), mapper.sdf());
+                }
                 if (deskew && i == 0 && sequence.size() > 1 && !scan.point_time_s.empty()) {
                     // No pose before the first scan tells its sweep's motion: the next scan
                     // does, before the first is mapped.
@@ -272,7 +373,18 @@ IncrementalSequenceMap map_sequence_incremental(
                 }
                 scan.T_world_sensor = result.odometry->poses().back();
             }
-            if (deskew && !(pose && pose->source == PoseSource::kSkipped)) {
+            // Keyframes train now; the other scans wait for the catch-up after the last one.
+            KeyframeChoice choice;
+            if (result.keyframes) {
+                choice = pose->source == PoseSource::kSkipped
+                             ? KeyframeChoice{false, KeyframeReason::kRedundant}
+                             : result.keyframes->choose(*pose, scan.T_world_sensor);
+                if (choice.train && trainer && trainer->busy()) {
+                    choice = {false, KeyframeReason::kBusy};
+                }
+            }
+            double train_seconds = 0.0;
+            if (deskew && choice.train && !(pose && pose->source == PoseSource::kSkipped)) {
                 deskew_for_mapping(scan, sequence, i, config.deskew, result.odometry.get(),
                                    result.deskew);
             }
@@ -285,30 +397,51 @@ IncrementalSequenceMap map_sequence_incremental(
                              static_cast<unsigned long long>(pose->points),
                              config.odometry.min_scan_points);
                 progress.update(i + 1, "skipped");
+            } else if (!choice.train) {
+                // Registered only: its points join the ICP reference, and the next scan is
+                // prepared; the scan itself is integrated after the last one.
+                result.deferred.push_back(i);
+                if (result.deferred.size() >
+                    static_cast<std::size_t>(config.incremental.keyframes.max_deferred_scans)) {
+                    result.deferred.pop_front();
+                    ++result.keyframes->counts().skipped;
+                }
+                result.odometry->remember_scan(scan);
+                prepare_ahead(i + 1);
+                StageSeconds stages;
+                stages[Stage::kLoad] = load_seconds;
+                result.profile.frames.push_back(stages);
+                char detail[128];
+                std::snprintf(detail, sizeof(detail), "pose %s (%.2f s), deferred (%s)",
+                              to_string(pose->source), pose->seconds, to_string(choice.reason));
+                progress.update(i + 1, detail);
+            } else if (trainer) {
+                // Trained in the background; this thread goes on with the next scan.
+                result.odometry->remember_scan(scan);
+                trainer->submit(i, std::move(scan), training_delay);
+                prepare_ahead(i + 1);
+                char detail[128];
+                std::snprintf(detail, sizeof(detail), "pose %s (%.2f s), training",
+                              to_string(pose->source), pose->seconds);
+                progress.update(i + 1, detail);
             } else {
+                const auto t_train = std::chrono::steady_clock::now();
                 // The scan joins the odometry's ICP reference, and the next scan is prepared,
                 // while the map trains on it: they share nothing, and the next scan's
                 // registration to the map (finish) waits for both.
                 const IncrementalFrameStats* mapped = nullptr;
                 if (result.odometry) {
-                    const bool next = i + 1 < sequence.size();
                     tbb::parallel_invoke([&] { mapped = &mapper.add_scan(scan); },
                                          [&] {
                                              result.odometry->remember_scan(scan);
-                                             if (!next) return;
-                                             ahead.emplace();
-                                             ahead->index = i + 1;
-                                             try {
-                                                 load_scan(i + 1, ahead->scan, ahead->load_seconds);
-                                                 ahead->prepared = prepare_scan(i + 1, ahead->scan);
-                                             } catch (...) {
-                                                 ahead->error = std::current_exception();
-                                             }
+                                             prepare_ahead(i + 1);
                                          });
                 } else {
                     mapped = &mapper.add_scan(scan);
                 }
+                if (training_delay.count() > 0) std::this_thread::sleep_for(training_delay);
                 const IncrementalFrameStats& frame = *mapped;
+                train_seconds = seconds_since(t_train);
                 StageSeconds stages = frame.stages;
                 stages[Stage::kLoad] = load_seconds;
                 result.profile.frames.push_back(stages);
@@ -325,9 +458,24 @@ IncrementalSequenceMap map_sequence_incremental(
                 }
                 progress.update(i + 1, detail);
             }
+            if (trainer && trainer->busy()) {
+                // The rest of the scan's budget goes to the training: the sensor's next scan
+                // would not have come yet.
+                const double left_s =
+                    1e-3 * config.incremental.keyframes.max_ms_per_scan - seconds_since(t_scan);
+                if (left_s > 0.0) trainer->wait_for(left_s);
+            }
             result.scan_wall_seconds.push_back(seconds_since(t_scan));
+            if (result.keyframes) {
+                if (!(pose && pose->source == PoseSource::kSkipped)) {
+                    result.keyframes->record(choice, result.odometry->poses()[i],
+                                             result.scan_wall_seconds.back(), train_seconds);
+                }
+                result.keyframe_choices.push_back(choice);
+            }
             const bool last = i + 1 == sequence.size();
             if (mesh_every > 0 && ((i + 1) % static_cast<std::size_t>(mesh_every) == 0) && !last) {
+                collect_trained();
                 ProgressMesh snapshot;
                 snapshot.frame = i;
                 auto t0 = std::chrono::steady_clock::now();
@@ -342,6 +490,7 @@ IncrementalSequenceMap map_sequence_incremental(
                 result.progress_meshes.push_back(snapshot);
             }
             if (checkpoints && control->stop_requested && control->stop_requested()) {
+                collect_trained();
                 progress.finish("stopped");
                 write_incremental_checkpoint(*control, result, i + 1);
                 throw_stopped_with_checkpoint(*control, "after frame " + std::to_string(i + 1) +
@@ -349,10 +498,12 @@ IncrementalSequenceMap map_sequence_incremental(
                                                             std::to_string(sequence.size()));
             }
             if (checkpoints && clock.due() && !last) {
+                collect_trained();
                 write_incremental_checkpoint(*control, result, i + 1);
                 clock.reset();
             }
         }
+        collect_trained();
         char detail[64];
         std::snprintf(detail, sizeof(detail), "median %.2f s/frame", mapper.median_frame_seconds());
         progress.finish(detail);
@@ -369,7 +520,20 @@ IncrementalSequenceMap map_sequence_incremental(
             write_tum_poses(out_dir / "poses_tum.txt", stamped);
         }
     }
-    const int consolidation_steps = mapper.config().incremental.consolidation_steps;
+    int consolidation_steps = mapper.config().incremental.consolidation_steps;
+    if (!result.deferred.empty()) {
+        if (consolidation_steps > 0) {
+            // The steps the deferred scans did not take when they came are taken here, so that
+            // the map gets the training of a run that trains every scan.
+            consolidation_steps += static_cast<int>(result.deferred.size()) *
+                                   mapper.config().incremental.iterations_per_frame;
+            catch_up_deferred(sequence, config, deskew, result, progress_tag);
+        } else {
+            // Nothing would train them: the map is as the keyframes left it.
+            result.keyframes->counts().skipped += result.deferred.size();
+            result.deferred.clear();
+        }
+    }
     if (consolidation_steps > 0 && sequence.size() > 0) {
         // The kept scans trained together before the bake (IncrementalConfig). Like the bake, it
         // runs to its end once started: a stop request is honoured before it, after the last
@@ -389,7 +553,7 @@ IncrementalSequenceMap map_sequence_incremental(
     result.products = write_map_products(mapper.sdf(), config, out_dir);
     result.profile.threads = static_cast<int>(
         tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
-    result.profile.run = product_stages(result.products);
+    result.profile.run += product_stages(result.products);
     result.profile.run[Stage::kTrain] += mapper.consolidation().seconds;
     if (mesh_every > 0 && sequence.size() > 0) {
         // The final mesh is the last progress mesh too, so the series ends with the whole run.

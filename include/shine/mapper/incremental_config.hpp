@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "shine/mapper/keyframe_policy.hpp"
 #include "shine/optim/importance_weights.hpp"
 
 namespace shine {
@@ -88,6 +89,9 @@ struct IncrementalConfig {
     /// On the street with 20 movers the ghost area falls from 3.55 to 2.28 % of the static
     /// surface and the streets without movers gain 0.2-0.3 F-score points (docs/movers.md).
     int consolidation_free_samples = 5;
+    /// With estimated poses, which scans train the map when they come and which wait for the
+    /// catch-up after the last scan (keyframe_policy.hpp). YAML section `keyframes`.
+    KeyframeConfig keyframes;
 };
 
 }  // namespace shine

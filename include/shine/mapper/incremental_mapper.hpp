@@ -71,6 +71,8 @@ struct IncrementalFrameStats {
     std::size_t optimizer_bytes = 0;  ///< the trainer's state after the frame
     /// The same split by profile stage (preprocess ... importance; load is the caller's).
     StageSeconds stages;
+    /// false: a deferred scan caught up by add_scan_untrained() (no steps of its own).
+    bool trained = true;
     double bce = 0.0;             ///< last iteration's mean BCE
     double regularization = 0.0;  ///< last iteration's lambda_r * L_r
 };
@@ -147,6 +149,11 @@ class IncrementalMapper {
     /// it for each scan the checkpoint had integrated, then load_state().
     void replay_scan(const Scan& scan);
 
+    /// A scan deferred by the keyframe policy (keyframe_policy.hpp), after the last scan: steps
+    /// 1-3 (preprocess, grow the map, normals) without steps or importance; its rays join the
+    /// kept scans, which consolidate() trains. frames() gets its statistics (trained false).
+    const IncrementalFrameStats& add_scan_untrained(const Scan& scan);
+
     /// The end of a sequence: `steps` (incremental.consolidation_steps in `shine map`) more
     /// steps over the kept scans (the last replay_frames, with the normals each got when
     /// current), their rays drawn uniformly (with preprocess.voxel_points all: every point of
@@ -180,7 +187,7 @@ class IncrementalMapper {
     const MappingStats& stats() const { return stats_; }
     const std::vector<IncrementalFrameStats>& frames() const { return frames_; }
     const ImportanceWeights& importance() const { return importance_; }
-    /// Median of the frames' total_seconds (0 before the first frame).
+    /// Median of the trained frames' total_seconds (0 before the first frame).
     double median_frame_seconds() const;
     /// Bytes of the state beyond the map: importance weights, anchors, Adam moments; after
     /// release_training_state(), what they were just before.

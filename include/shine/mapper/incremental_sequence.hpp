@@ -7,10 +7,14 @@
 // With config.odometry.estimate_poses the scans' own poses are ignored: each scan's pose is
 // estimated on the map built so far (scan_odometry.hpp) and the scan is mapped there; the
 // estimated poses are written to OUT/poses.txt (KITTI 3x4, one line per scan, skipped scans
-// included) and, for a recording (scans with times), OUT/poses_tum.txt.
+// included) and, for a recording (scans with times), OUT/poses_tum.txt. Tracking is decoupled
+// from mapping (keyframe_policy.hpp): every scan is registered, the keyframes train the map when
+// they come, the other scans are deferred and, with a consolidation (consolidation_steps > 0),
+// integrated untrained after the last scan, before the consolidation trains every kept scan.
 #pragma once
 
 #include <cstddef>
+#include <deque>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -19,6 +23,7 @@
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
+#include "shine/mapper/keyframe_policy.hpp"
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/scan_odometry.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
@@ -45,6 +50,15 @@ struct IncrementalSequenceMap {
     /// the final products once (progress meshes are not counted).
     StageProfile profile;
     DeskewStats deskew;  ///< what deskewing did (config.deskew, sequence_deskew.hpp)
+    /// With estimated poses: which scans trained when they came, which were deferred to the
+    /// catch-up after the last scan (keyframe_policy.hpp), and the counts; null otherwise.
+    std::unique_ptr<KeyframePolicy> keyframes;
+    /// Per scan of the sequence (with keyframes): the policy's choice (a skipped scan's:
+    /// trained false, reason kRedundant).
+    std::vector<KeyframeChoice> keyframe_choices;
+    /// Deferred scans waiting for the catch-up (empty after the run).
+    std::deque<std::size_t> deferred;
+    double catch_up_seconds = 0.0;  ///< integrating the deferred scans after the last one
     /// Wall-clock seconds of each scan this run went through, from its load to the end of its
     /// mapping (odometry, deskew and mapping included; a resumed run's replayed scans are not).
     std::vector<double> scan_wall_seconds;
