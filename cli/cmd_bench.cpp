@@ -30,7 +30,7 @@ struct BenchOptions {
     std::string data;
     std::string out = "out-bench";
     std::string sizes_m = "0.1,0.2,0.5,1.0";
-    std::string modes = "batch";
+    std::string modes = "auto";  ///< auto: batch, or batch,incremental with --holdout-every
     std::string config_path;
     int threads = -1;
     int iterations = -1;
@@ -56,7 +56,9 @@ int run_bench_speed(const BenchOptions& opt) {
     seq_options.last_frame = opt.last_frame;
     seq_options.frame_step = opt.frame_step;
     seq_options.poses_path = opt.poses_path;
+    seq_options.poses = PoseFileUse::kIfPresent;  // without poses: the odometry's run alone
     const ScanSequence sequence = ScanSequence::open(o.data, seq_options);
+    o.data_has_poses = sequence.has_poses();
     if (!opt.config_path.empty()) {
         MapperConfig check;
         load_config_yaml(opt.config_path, check);
@@ -87,7 +89,7 @@ int run_bench(const BenchOptions& opt) {
         if (opt.holdout_every > 0) {
             throw ConfigError("--holdout-every belongs to the accuracy study, not to --speed");
         }
-        if (opt.modes != "batch") {
+        if (opt.modes != "auto") {
             throw ConfigError(
                 "--modes belongs to the accuracy study; --speed always times the TSDF, ShineVDB "
                 "batch and incremental");
@@ -100,7 +102,9 @@ int run_bench(const BenchOptions& opt) {
     // Every option is checked before any scan is read or any file written.
     BenchConfig config;
     config.sizes_m = parse_sizes_m(opt.sizes_m);
-    config.modes = parse_modes(opt.modes);
+    config.modes = parse_modes(opt.modes != "auto"     ? opt.modes
+                               : opt.holdout_every > 0 ? "batch,incremental"
+                                                       : "batch");
     if (!opt.config_path.empty()) load_config_yaml(opt.config_path, config.shine);
     if (opt.half_features) {
         // Through the configuration's own parser, so the key stays defined in one place.
@@ -215,7 +219,8 @@ const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
     cmd->add_option("--modes", opt->modes,
                     "ShineVDB's modes, comma-separated: batch, incremental or batch,incremental. "
                     "Incremental mode runs as `shine map --mode incremental` (its schedule from "
-                    "-c, not --iterations) -> OUT/shinevdb_incremental_<size>/")
+                    "-c, not --iterations) -> OUT/shinevdb_incremental_<size>/. auto: batch, or "
+                    "batch,incremental with --holdout-every")
         ->capture_default_str();
     cmd->add_option("-c,--config", opt->config_path,
                     "YAML configuration of ShineVDB (see examples/config.yaml); its leaf size is "

@@ -130,7 +130,7 @@ TEST(BenchCli, HeldOutScansScoreBothMeshesWithoutAReference) {
     fs::remove_all(out);
     const CliResult r = run("bench '" + street.string() + "' -o '" + out.string() +
                             "' --sizes-m 0.5 --iterations 100 --threads 2 --holdout-every 3 "
-                            "--no-eval -q");
+                            "--modes batch --no-eval -q");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find("held-out scans (2, 1 in 3"), std::string::npos) << r.output;
     const std::vector<shine::BenchRow> rows =

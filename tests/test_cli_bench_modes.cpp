@@ -45,8 +45,8 @@ TEST(BenchModesCli, IncrementalRowsBesideBatchAndTsdfOnHeldOutScans) {
     fs::remove_all(out);
     const CliResult r =
         run("bench '" + street.string() + "' -o '" + out.string() + "' -c '" + config.string() +
-            "' --sizes-m 0.5 --iterations 50 --threads 2 --holdout-every 3 "
-            "--modes batch,incremental --no-eval -q");
+            "' --sizes-m 0.5 --iterations 50 --threads 2 --holdout-every 3 --no-eval -q");
+    // With --holdout-every both modes run without --modes.
     ASSERT_EQ(r.exit_code, 0) << r.output;
     for (const char* f :
          {"shinevdb_0.5/map.vdb", "tsdf_0.5/tsdf.vdb", "shinevdb_incremental_0.5/map.vdb",
