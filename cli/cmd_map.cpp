@@ -647,9 +647,13 @@ int run_map(const MapOptions& given_options) {
         } else if (incremental) {
             incremental_map = map_sequence_incremental(config, sequence, out, {}, &control);
         } else if (config.odometry.estimate_poses) {
-            // Only its poses are used: its map is not consolidated.
+            // Only its poses are used: its map is not consolidated, and every scan trains it
+            // (keyframes would leave the deferred scans untrained: on the real drive the batch
+            // map at the poses of a keyframe odometry scored 73.03 against 73.79 % of held-out
+            // rays within 10 cm).
             MapperConfig odometry_config = config;
             odometry_config.incremental.consolidation_steps = 0;
+            odometry_config.incremental.keyframes.enabled = false;
             odometry_run =
                 map_sequence_incremental(odometry_config, sequence, out / "odometry", "odometry");
             const std::vector<Eigen::Isometry3d>& poses = odometry_run->odometry->poses();
