@@ -32,6 +32,23 @@ std::string trim(const std::string& s) {
     return s.substr(begin, s.find_last_not_of(" \t") - begin + 1);
 }
 
+/// The trimmed entries of the comma-separated list `text`; an empty entry (a trailing comma
+/// included) is a ConfigError "`where`: empty entry; separate `what` by single commas".
+std::vector<std::string> list_entries(const std::string& text, const std::string& where,
+                                      const char* what) {
+    std::vector<std::string> entries;
+    std::istringstream in(text + ",");  // the sentinel makes a trailing comma an empty entry
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        std::string value = trim(item);
+        if (value.empty()) {
+            throw ConfigError(where + ": empty entry; separate " + what + " by single commas");
+        }
+        entries.push_back(std::move(value));
+    }
+    return entries;
+}
+
 }  // namespace
 
 std::vector<double> parse_sizes_m(const std::string& text) {
@@ -41,13 +58,7 @@ std::vector<double> parse_sizes_m(const std::string& text) {
                           ": the list is empty; give sizes in metres, e.g. 0.1,0.2,0.5,1.0");
     }
     std::vector<double> sizes;
-    std::istringstream in(text + ",");  // the sentinel makes a trailing comma an empty entry
-    std::string item;
-    while (std::getline(in, item, ',')) {
-        const std::string value = trim(item);
-        if (value.empty()) {
-            throw ConfigError(where + ": empty entry; separate sizes by single commas");
-        }
+    for (const std::string& value : list_entries(text, where, "sizes")) {
         double size = 0.0;
         const auto result = std::from_chars(value.data(), value.data() + value.size(), size);
         if (result.ec != std::errc() || result.ptr != value.data() + value.size()) {
@@ -73,13 +84,7 @@ BenchModes parse_modes(const std::string& text) {
     }
     BenchModes modes;
     modes.batch = false;
-    std::istringstream in(text + ",");  // the sentinel makes a trailing comma an empty entry
-    std::string item;
-    while (std::getline(in, item, ',')) {
-        const std::string value = trim(item);
-        if (value.empty()) {
-            throw ConfigError(where + ": empty entry; separate modes by single commas");
-        }
+    for (const std::string& value : list_entries(text, where, "modes")) {
         bool* mode = value == "batch"         ? &modes.batch
                      : value == "incremental" ? &modes.incremental
                                               : nullptr;

@@ -329,13 +329,17 @@ IncrementalSequenceMap map_sequence_incremental(
                 ahead->error = std::current_exception();
             }
         };
-        // A trained scan's statistics and its stage profile, when the trainer hands them over.
-        const auto collect_trained = [&] {
-            if (!trainer) return;
-            trainer->wait();
+        // The stage profile of the scan the background training finished, if any.
+        const auto take_trained = [&] {
             if (std::optional<TrainedScan> done = trainer->take_finished()) {
                 result.profile.frames.push_back(done->stats.stages);
             }
+        };
+        // Waits for the background training (if any) and takes its scan.
+        const auto collect_trained = [&] {
+            if (!trainer) return;
+            trainer->wait();
+            take_trained();
         };
         for (std::size_t i = first_frame; i < sequence.size(); ++i) {
             const auto t_scan = std::chrono::steady_clock::now();
@@ -356,9 +360,7 @@ IncrementalSequenceMap map_sequence_incremental(
                 if (!prepared) prepared = prepare_scan(i, scan);
                 if (trainer) {
                     // The map as the last trained keyframe left it: registration never waits.
-                    if (std::optional<TrainedScan> done = trainer->take_finished()) {
-                        result.profile.frames.push_back(done->stats.stages);
-                    }
+                    take_trained();
                     const std::shared_ptr<const NeuralSdf> map = trainer->snapshot();
                     pose = &result.odometry->finish(std::move(*prepared), *map);
                 } else {
