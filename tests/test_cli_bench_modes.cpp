@@ -123,6 +123,38 @@ TEST(BenchModesCli, IncrementalRowsBesideBatchAndTsdfOnHeldOutScans) {
     EXPECT_FALSE(fs::exists(out_incremental / "shinevdb_0.5"));
 }
 
+TEST(BenchModesCli, BatchRowIsWhatShineMapMakesAtItsDefaults) {
+    // The batch row is `shine map`'s batch run: poses refined with the map, the held-out scans
+    // placed with the corrections of the mapped scans around them. The same mesh byte for byte
+    // and the same held-out figures.
+    const fs::path street = test_dir() / "street_map";
+    simulate_street(street, /*frames=*/6, /*seed=*/3);
+    const fs::path map_out = test_dir() / "map_out";
+    const fs::path bench_out = test_dir() / "bench_out";
+    fs::remove_all(map_out);
+    fs::remove_all(bench_out);
+    const std::string common = " --iterations 50 --threads 2 --holdout-every 3 --no-eval";
+    const CliResult mapped = run("map '" + street.string() + "' -o '" + map_out.string() +
+                                 "' --leaf-size-m 0.5 -q" + common);
+    ASSERT_EQ(mapped.exit_code, 0) << mapped.output;
+    const CliResult bench = run("bench '" + street.string() + "' -o '" + bench_out.string() +
+                                "' --sizes-m 0.5 --modes batch -q" + common);
+    ASSERT_EQ(bench.exit_code, 0) << bench.output;
+
+    const nlohmann::json stats = read_json(map_out / "stats.json");
+    ASSERT_TRUE(stats.contains("refine")) << "pose refinement is on by default in batch mode";
+    EXPECT_EQ(read_text(bench_out / "shinevdb_0.5" / "mesh.ply"), read_text(map_out / "mesh.ply"));
+    const std::vector<shine::BenchRow> rows =
+        shine::rows_from_csv(read_text(bench_out / "bench.csv"), "bench.csv");
+    const shine::BenchRow* batch = find_row(rows, shine::BenchMethod::kShineVdb);
+    ASSERT_TRUE(batch && batch->heldout);
+    const nlohmann::json& heldout = stats.at("heldout").at("total");
+    EXPECT_EQ(batch->heldout->rays, heldout.at("rays").get<std::size_t>());
+    EXPECT_NEAR(batch->heldout->within_ratio, heldout.at("within_ratio").get<double>(), 1e-9);
+    EXPECT_NEAR(batch->heldout->median_abs_error_m, heldout.at("median_abs_error_m").get<double>(),
+                1e-9);
+}
+
 TEST(BenchModesCli, BadModesFailBeforeAnything) {
     const fs::path out = test_dir() / "out_bad";
     for (const char* modes : {"''", "batch,", "online", "batch,batch"}) {

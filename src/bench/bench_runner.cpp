@@ -11,9 +11,11 @@
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/ply.hpp"
-#include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
+#include "shine/mapper/pose_refinement.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
+#include "shine/mapper/sweep_test.hpp"
 #include "shine/model/map_file.hpp"
 #include "shine/tsdf/tsdf_file.hpp"
 
@@ -182,39 +184,28 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
     heldout_config.min_range_m = shine_config.preprocess.min_range_m;
     heldout_config.max_range_m = shine_config.preprocess.max_range_m;
     const std::vector<std::size_t>& heldout = config.heldout_frames;
-    const auto score_heldout = [&](const TriangleMesh& mesh) {
+    const auto score_heldout = [&](const TriangleMesh& mesh, const ScanSequence& scored,
+                                   const ScanPreparation& prepare) {
         return to_bench_heldout(
-            evaluate_heldout(mesh, scans.sequence(), heldout, heldout_config).total);
+            evaluate_heldout(mesh, scored, heldout, heldout_config, prepare).total);
     };
     const auto is_heldout = [&](std::size_t i) {
         return std::binary_search(heldout.begin(), heldout.end(), i);
     };
 
-    // Both mappers get each scan before the next one is read; their own stats time them apart.
-    std::unique_ptr<BatchMapper> shine;
-    if (config.modes.batch) shine = std::make_unique<BatchMapper>(shine_config);
     auto tsdf = std::make_unique<TsdfMapper>(tsdf_config);
     {
         Progress progress("load " + tag, scans.size());
         Scan storage;
         for (std::size_t i = 0; i < scans.size(); ++i) {
             if (is_heldout(i)) continue;
-            const Scan& scan = scans.scan(i, storage);
-            if (shine) shine->add_scan(scan);
-            tsdf->add_scan(scan);
+            tsdf->add_scan(scans.scan(i, storage));
             progress.update(i + 1);
         }
-        const std::string voxels = std::to_string(tsdf->volume().active_voxels()) + " voxels";
-        if (shine) {
-            shine->finish_scans();
-            progress.finish(std::to_string(shine->sdf().octree.num_corners()) + " corners, " +
-                            voxels);
-        } else {
-            progress.finish(voxels);
-        }
+        progress.finish(std::to_string(tsdf->volume().active_voxels()) + " voxels");
     }
 
-    // The TSDF is finished first, so its grids are freed before ShineVDB trains.
+    // The TSDF is finished first, so its grids are freed before ShineVDB maps.
     {
         Progress progress("tsdf " + tag, 3);
         progress.update(0, "mesh");
@@ -243,14 +234,15 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         }
         if (!heldout.empty()) {
             progress.update(2, "held-out scans");
-            tsdf_row.heldout = score_heldout(mesh);
+            tsdf_row.heldout = score_heldout(mesh, scans.sequence(), {});
         }
         progress.finish(std::to_string(mesh.triangles.size()) + " triangles");
     }
 
     // The mesh of a ShineVDB run, read back from its directory, evaluated and scored.
     const auto evaluate_shine = [&](BenchRow& row, const fs::path& dir, Progress& progress,
-                                    std::size_t step) {
+                                    std::size_t step, const ScanSequence& scored,
+                                    const ScanPreparation& prepare) {
         if (!reference && heldout.empty()) return;
         const TriangleMesh mesh = read_ply_mesh(dir / "mesh.ply");
         if (reference) {
@@ -259,49 +251,86 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         }
         if (!heldout.empty()) {
             progress.update(step, "held-out scans");
-            row.heldout = score_heldout(mesh);
+            row.heldout = score_heldout(mesh, scored, prepare);
         }
     };
 
     std::vector<BenchRow> rows;
-    if (shine) {
-        train_with_progress(*shine, shine->planned_iterations(), "train " + tag);
-        Progress progress("shine " + tag, 2);
-        progress.update(0, "save, bake, mesh");
+    std::vector<std::size_t> mapped;
+    for (std::size_t i = 0; i < scans.size(); ++i) {
+        if (!is_heldout(i)) mapped.push_back(i);
+    }
+    // The scans' read time is not counted, as the TSDF gets its scans read.
+    const auto read_seconds = [](const StageProfile& profile) {
+        double seconds = 0.0;
+        for (const StageSeconds& frame : profile.frames) seconds += frame[Stage::kLoad];
+        return seconds;
+    };
+    if (config.modes.batch) {
+        // As `shine map` maps in batch mode by default: scans timed from the azimuth where the
+        // sweep test finds them skewed (with given poses and refinement), the poses refined with
+        // the map, and the held-out scans placed with the corrections of the mapped scans around
+        // them and deskewed as the mapped ones.
+        ScanSequence selected = scans.sequence();
+        if (shine_config.deskew.azimuth_times != DeskewMode::kAuto ||
+            (selected.has_poses() && shine_config.refine.rounds > 0)) {
+            selected = sequence_with_sweep_times(selected, shine_config.deskew);
+        }
         const fs::path dir = bench_run_dir(out_dir, BenchMethod::kShineVdb, size_m);
-        ensure_directory(dir);
-        const MapProducts products = write_map_products(shine->sdf(), shine->config(), dir);
-        const MappingStats& stats = shine->stats();
+        const auto t0 = std::chrono::steady_clock::now();
+        SequenceMap run = map_sequence(shine_config, selected.subset(mapped), dir, "batch " + tag);
+        const double wall_seconds = seconds_since(t0) - read_seconds(run.profile);
+
+        ScanSequence scored = selected;
+        if (!run.refined_poses_world.empty()) {
+            std::vector<Eigen::Isometry3d> given(selected.size());
+            std::vector<double> frame_numbers(selected.size());
+            std::vector<bool> is_mapped(selected.size(), false);
+            for (std::size_t i = 0; i < selected.size(); ++i) {
+                given[i] = selected.pose(i);
+                frame_numbers[i] = static_cast<double>(selected.frame_number(i));
+            }
+            for (const std::size_t m : mapped) is_mapped[m] = true;
+            scored = selected.with_poses(
+                interpolate_corrections(given, is_mapped, run.refined_poses_world, frame_numbers));
+        }
+        ScanPreparation prepare;
+        DeskewStats deskew_stats;
+        if (deskew_active(shine_config.deskew, shine_config.odometry.estimate_poses,
+                          selected.has_sweep_times())) {
+            prepare = [&](std::size_t frame, Scan& scan) {
+                deskew_with_sequence_poses(scan, scored, frame, shine_config.deskew,
+                                           deskew_stats);
+            };
+        }
+
+        BenchRow row = shine_row;
+        const MappingStats& stats = run.mapper->stats();
         const double mapping_seconds = stats.load_seconds + stats.allocate_seconds +
                                        stats.normals_seconds + stats.train_seconds;
-        shine_row.frames = stats.frames;
-        shine_row.iterations = stats.iterations;
-        shine_row.map_bytes = shine->sdf().memory_bytes();
-        shine_row.file_bytes = file_bytes(dir / "map.vdb");
-        shine_row.seconds =
-            mapping_seconds + products.save_seconds + products.bake_seconds + products.mesh_seconds;
-        shine_row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
-        shine.reset();  // its memory goes to the evaluation and to incremental mode
-        evaluate_shine(shine_row, dir, progress, 1);
-        progress.finish(std::to_string(products.mesh.triangles) + " triangles");
-        rows.push_back(shine_row);
+        row.frames = stats.frames;
+        row.iterations = stats.iterations;
+        row.map_bytes = run.mapper->sdf().memory_bytes();
+        row.file_bytes = file_bytes(dir / "map.vdb");
+        row.seconds = wall_seconds;
+        row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
+        const std::size_t triangles = run.products.mesh.triangles;
+        run.mapper.reset();  // its memory goes to the evaluation and to incremental mode
+        Progress progress("shine " + tag, 1);
+        evaluate_shine(row, dir, progress, 0, scored, prepare);
+        progress.finish(std::to_string(triangles) + " triangles");
+        rows.push_back(row);
     }
     rows.push_back(tsdf_row);
 
     if (config.modes.incremental) {
         // As `shine map --mode incremental` maps the scans it is given: read one by one, mapped,
         // consolidated, products written.
-        std::vector<std::size_t> mapped;
-        for (std::size_t i = 0; i < scans.size(); ++i) {
-            if (!is_heldout(i)) mapped.push_back(i);
-        }
         const fs::path dir = bench_run_dir(out_dir, BenchMethod::kShineVdbIncremental, size_m);
         const auto t0 = std::chrono::steady_clock::now();
         IncrementalSequenceMap run = map_sequence_incremental(
             shine_config, scans.sequence().subset(mapped), dir, "incremental " + tag);
-        double read_seconds = 0.0;  // not counted, as the other methods get their scans read
-        for (StageSeconds& frame : run.profile.frames) read_seconds += frame[Stage::kLoad];
-        const double wall_seconds = seconds_since(t0) - read_seconds;
+        const double wall_seconds = seconds_since(t0) - read_seconds(run.profile);
 
         BenchRow row;
         row.method = BenchMethod::kShineVdbIncremental;
@@ -318,7 +347,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         const std::size_t triangles = run.products.mesh.triangles;
         run.mapper.reset();
         Progress progress("incremental " + tag, 1);
-        evaluate_shine(row, dir, progress, 0);
+        evaluate_shine(row, dir, progress, 0, scans.sequence(), {});
         progress.finish(std::to_string(triangles) + " triangles");
         rows.push_back(row);
     }
