@@ -299,8 +299,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         if (deskew_active(shine_config.deskew, shine_config.odometry.estimate_poses,
                           selected.has_sweep_times())) {
             prepare = [&](std::size_t frame, Scan& scan) {
-                deskew_with_sequence_poses(scan, scored, frame, shine_config.deskew,
-                                           deskew_stats);
+                deskew_with_sequence_poses(scan, scored, frame, shine_config.deskew, deskew_stats);
             };
         }
 
