@@ -78,14 +78,50 @@ TEST(KittiBin, RoundTripIsExactAndIntensityIsZero) {
     EXPECT_EQ(record[3], 0.0f);
 }
 
-TEST(KittiBin, ReadsHandMadeFileAndDropsIntensity) {
+TEST(KittiBin, ReadsHandMadeFileWithItsIntensityColumn) {
     const fs::path path = test_dir("bin_hand") / "scan.bin";
-    const float data[8] = {1.5f, -2.0f, 3.25f, 0.7f, 10.0f, 20.0f, 30.0f, 99.0f};
+    const float data[12] = {1.5f,  -2.0f, 3.25f, 0.7f, 10.0f, 20.0f,
+                            30.0f, 99.0f, 4.0f,  5.0f, 6.0f,  0.0f};
     write_bytes(path, std::string(reinterpret_cast<const char*>(data), sizeof(data)));
     const auto points = shine::read_kitti_bin(path);
-    ASSERT_EQ(points.size(), 2u);
+    ASSERT_EQ(points.size(), 3u);
     EXPECT_EQ(points[0], Eigen::Vector3f(1.5f, -2.0f, 3.25f));
     EXPECT_EQ(points[1], Eigen::Vector3f(10.0f, 20.0f, 30.0f));
+    std::vector<float> intensity;
+    EXPECT_EQ(shine::read_kitti_bin(path, &intensity), points);
+    EXPECT_EQ(intensity, (std::vector<float>{0.7f, 99.0f, 0.0f}));  // as stored, zero included
+}
+
+TEST(KittiBin, IntensityRoundTripsAndAllZeroOrNanColumnsMeanNone) {
+    const fs::path dir = test_dir("bin_intensity");
+    const std::vector<Eigen::Vector3f> points = {{1, 2, 3}, {4, 5, 6}, {7, 8, 9}};
+    std::vector<float> intensity;
+    // Given intensities, NaN among them (its point is kept), come back bit for bit.
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    shine::write_kitti_bin(dir / "a.bin", points, {0.25f, nan, 1e-30f});
+    EXPECT_EQ(shine::read_kitti_bin(dir / "a.bin", &intensity), points);
+    ASSERT_EQ(intensity.size(), 3u);
+    EXPECT_EQ(intensity[0], 0.25f);
+    EXPECT_TRUE(std::isnan(intensity[1]));
+    EXPECT_EQ(intensity[2], 1e-30f);  // one tiny non-zero value is a measurement
+    // Written without intensity (0), or holding nothing but zeros and NaN: none.
+    shine::write_kitti_bin(dir / "b.bin", points);
+    intensity = {1.0f};
+    shine::read_kitti_bin(dir / "b.bin", &intensity);
+    EXPECT_TRUE(intensity.empty());
+    shine::write_kitti_bin(dir / "c.bin", points, {0.0f, nan, -0.0f});
+    shine::read_kitti_bin(dir / "c.bin", &intensity);
+    EXPECT_TRUE(intensity.empty());
+    // One intensity per point or none: anything else names the file.
+    try {
+        shine::write_kitti_bin(dir / "d.bin", points, {1.0f, 2.0f});
+        FAIL() << "expected DataError";
+    } catch (const shine::DataError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("d.bin"), std::string::npos) << m;
+        EXPECT_NE(m.find("3 points but 2 intensities"), std::string::npos) << m;
+    }
+    EXPECT_FALSE(fs::exists(dir / "d.bin"));
 }
 
 TEST(KittiBin, ErrorsNameTheFileAndTheByteOffset) {

@@ -156,6 +156,66 @@ TEST(Pcd, AsciiWithFieldsInAnyOrderAndCounts) {
     EXPECT_EQ(points[0], Eigen::Vector3f(1.25f, -2.0f, 3.5f));
     EXPECT_EQ(points[1], Eigen::Vector3f(4.0f, 0.5f, -100.0f));
     EXPECT_TRUE(std::isnan(points[2].z()));  // NaN is data; preprocess_scan decides its fate
+    // The U4 intensity, as stored: one per point, the NaN point's too.
+    const shine::TimedPoints scan = shine::read_pcd_scan(path);
+    EXPECT_EQ(scan.intensity, (std::vector<float>{5.0f, 6.0f, 7.0f}));
+    EXPECT_EQ(scan.intensity_field, "intensity");
+}
+
+TEST(Pcd, IntensityOfAnyTypeInBinaryPreferringIntensityThenReflectivityThenI) {
+    const fs::path dir = test_dir("intensity");
+    // x y z F4, `i` U1, `reflectivity` I2 (negative values stay), padding: reflectivity wins.
+    std::string file =
+        "VERSION 0.7\nFIELDS x y z i reflectivity _\nSIZE 4 4 4 1 2 1\nTYPE F F F U I U\n"
+        "COUNT 1 1 1 1 1 1\nWIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA binary\n";
+    const std::int16_t reflectivity[3] = {-3, 0, 30000};
+    for (int k = 0; k < 3; ++k) {
+        put<float>(file, 1.0f + k);
+        put<float>(file, 2.0f);
+        put<float>(file, 3.0f);
+        put<std::uint8_t>(file, static_cast<std::uint8_t>(250 + k));
+        put<std::int16_t>(file, reflectivity[k]);
+        file += '\xee';
+    }
+    write_bytes(dir / "two.pcd", file);
+    shine::TimedPoints scan = shine::read_pcd_scan(dir / "two.pcd");
+    ASSERT_EQ(scan.points_sensor.size(), 3u);
+    EXPECT_EQ(scan.intensity, (std::vector<float>{-3.0f, 0.0f, 30000.0f}));
+    EXPECT_EQ(scan.intensity_field, "reflectivity");
+    // Without `reflectivity`, the U1 `i`, not rescaled.
+    const std::string only_i =
+        "VERSION 0.7\nFIELDS x y z i\nSIZE 4 4 4 1\nTYPE F F F U\n"
+        "WIDTH 1\nPOINTS 1\nDATA ascii\n1 2 3 255\n";
+    scan = shine::parse_pcd_scan(only_i, "only_i.pcd");
+    EXPECT_EQ(scan.intensity, std::vector<float>{255.0f});
+    EXPECT_EQ(scan.intensity_field, "i");
+    // All zero: none (what writers without intensity put there).
+    const std::string zeros =
+        "VERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\n"
+        "WIDTH 2\nPOINTS 2\nDATA ascii\n1 2 3 0\n4 5 6 0\n";
+    scan = shine::parse_pcd_scan(zeros, "zeros.pcd");
+    EXPECT_EQ(scan.points_sensor.size(), 2u);
+    EXPECT_TRUE(scan.intensity.empty());
+    EXPECT_EQ(scan.intensity_field, "");
+}
+
+TEST(PcdErrors, IntensityFieldsOfAnUnusableShapeNameFileAndLine) {
+    const fs::path dir = test_dir("intensity_errors");
+    write_bytes(dir / "count.pcd",
+                "VERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\n"
+                "COUNT 1 1 1 2\nWIDTH 1\nDATA ascii\n1 2 3 4 5\n");
+    expect_io_error([&] { shine::read_pcd_scan(dir / "count.pcd"); }, dir / "count.pcd",
+                    "line 5: intensity field 'intensity' has COUNT 2");
+    write_bytes(dir / "half.pcd",
+                "VERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 2\nTYPE F F F F\n"
+                "WIDTH 1\nDATA ascii\n1 2 3 4\n");
+    expect_io_error([&] { shine::read_pcd_scan(dir / "half.pcd"); }, dir / "half.pcd",
+                    "line 3: intensity field 'intensity' is TYPE F with SIZE 2");
+    write_bytes(dir / "word.pcd",
+                "VERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\n"
+                "WIDTH 1\nDATA ascii\n1 2 3 bright\n");
+    expect_io_error([&] { shine::read_pcd_scan(dir / "word.pcd"); }, dir / "word.pcd",
+                    "line 7: intensity 'bright' is not a number");
 }
 
 TEST(Pcd, BinaryWithPaddingAndMixedSizes) {
@@ -201,6 +261,8 @@ TEST(Pcd, BinaryCompressedWithBackReferences) {
     // Make sure the stream really contains back-references: it is much smaller than the data.
     EXPECT_LT(fs::file_size(path), 300u * 20 / 4);
     EXPECT_EQ(shine::read_pcd_points(path), points);
+    // The intensity column (the first in the block) for every point.
+    EXPECT_EQ(shine::read_pcd_scan(path).intensity, std::vector<float>(300, 7.0f));
 }
 
 TEST(PcdErrors, HeaderProblemsNameFileAndLine) {

@@ -238,11 +238,11 @@ template <typename T>
 void check_scalar_type(const std::string& type_name, bool big_endian) {
     SCOPED_TRACE(type_name + (big_endian ? " big-endian" : " little-endian"));
     const fs::path path = test_dir("types") / ("p_" + type_name + ".ply");
-    std::string bytes = "ply\nformat " +
-                        std::string(big_endian ? "binary_big_endian" : "binary_little_endian") +
-                        " 1.0\nelement vertex 2\nproperty " + type_name + " x\nproperty " +
-                        type_name + " y\nproperty " + type_name + " z\nend_header\n";
-    const T values[2][3] = {{T(1), T(2), T(3)}, {T(100), T(0), T(7)}};
+    std::string bytes =
+        "ply\nformat " + std::string(big_endian ? "binary_big_endian" : "binary_little_endian") +
+        " 1.0\nelement vertex 2\nproperty " + type_name + " x\nproperty " + type_name +
+        " y\nproperty " + type_name + " z\nproperty " + type_name + " intensity\nend_header\n";
+    const T values[2][4] = {{T(1), T(2), T(3), T(9)}, {T(100), T(0), T(7), T(0)}};
     for (const auto& v : values) {
         for (T c : v) put<T>(bytes, c, big_endian);
     }
@@ -251,6 +251,11 @@ void check_scalar_type(const std::string& type_name, bool big_endian) {
     ASSERT_EQ(points.size(), 2u);
     EXPECT_EQ(points[0], Eigen::Vector3f(1, 2, 3));
     EXPECT_EQ(points[1], Eigen::Vector3f(100, 0, 7));
+    // The intensity property of the same type, as stored.
+    const shine::TimedPoints scan = shine::read_ply_scan(path);
+    EXPECT_EQ(scan.points_sensor, points);
+    EXPECT_EQ(scan.intensity, (std::vector<float>{9.0f, 0.0f}));
+    EXPECT_EQ(scan.intensity_field, "intensity");
 }
 
 TEST(PlyPoints, ReadsEveryScalarTypeInBothByteOrders) {
@@ -272,6 +277,37 @@ TEST(PlyPoints, ReadsEveryScalarTypeInBothByteOrders) {
         check_scalar_type<double>("double", big);
         check_scalar_type<double>("float64", big);
     }
+}
+
+TEST(PlyPoints, IntensityByNameWithoutCaseInOrderOfPreference) {
+    // CloudCompare's scalar_Intensity beside a `reflectance`: reflectance comes first.
+    const std::string both =
+        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+        "property float z\nproperty float scalar_Intensity\nproperty uchar reflectance\n"
+        "end_header\n1 2 3 0.5 17\n4 5 6 nan 0\n";
+    shine::TimedPoints scan = shine::parse_ply_scan(both, "both.ply");
+    EXPECT_EQ(scan.intensity, (std::vector<float>{17.0f, 0.0f}));
+    EXPECT_EQ(scan.intensity_field, "reflectance");
+    // scalar_Intensity alone: its NaN is kept with its point.
+    const std::string alone =
+        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+        "property float z\nproperty float scalar_Intensity\nend_header\n1 2 3 0.5\n"
+        "4 5 6 nan\n";
+    scan = shine::parse_ply_scan(alone, "alone.ply");
+    ASSERT_EQ(scan.intensity.size(), 2u);
+    EXPECT_EQ(scan.intensity[0], 0.5f);
+    EXPECT_TRUE(std::isnan(scan.intensity[1]));
+    EXPECT_EQ(scan.intensity_field, "scalar_Intensity");
+    // A list named intensity is not one value per point: an error naming the file.
+    const fs::path path = test_dir("intensity_list") / "list.ply";
+    write_bytes(path,
+                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                "property float z\nproperty list uchar float intensity\nend_header\n"
+                "1 2 3 2 0.5 0.25\n");
+    expect_io_error([&] { shine::read_ply_scan(path); }, path,
+                    "intensity property 'intensity' is a list");
+    // Meshes do not look for it.
+    EXPECT_EQ(shine::read_ply_mesh(path).vertices.size(), 1u);
 }
 
 TEST(PlyPoints, RoundTripAndFacesIgnored) {

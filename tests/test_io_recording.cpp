@@ -8,10 +8,12 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <string>
+#include <tuple>
 
 #include "shine/core/error.hpp"
 #include "shine/io/kitti.hpp"
@@ -63,13 +65,18 @@ class Recordings : public ::testing::Test {
         scans_.clear();
         for (int f = 0; f < kFrames; ++f) {
             std::vector<Eigen::Vector3f> points;
+            std::vector<float> intensity;
             for (int i = 0; i < kPointsPerScan; ++i) {
                 points.emplace_back(coord(rng), coord(rng), coord(rng) * 0.1f);
+                // Whole numbers 0..255 (zeros among them): the uint8 and uint16 intensity fields
+                // of the MCAP and SQLite fixtures hold them exactly.
+                intensity.push_back(static_cast<float>((37 * f + 11 * i) % 256));
             }
             char name[32];
             std::snprintf(name, sizeof(name), "%06d.bin", f);
-            write_kitti_bin(root_ / "kitti" / "velodyne" / name, points);
+            write_kitti_bin(root_ / "kitti" / "velodyne" / name, points, intensity);
             scans_.push_back(points);
+            intensities_.push_back(intensity);
             Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
             T.linear() = Eigen::AngleAxisd(0.1 * f, Eigen::Vector3d::UnitZ()).toRotationMatrix();
             T.translation() = Eigen::Vector3d(1.5 * f, 0.2 * f, 0.0);
@@ -105,7 +112,8 @@ class Recordings : public ::testing::Test {
 
     /// Every scan of `path` equals the KITTI scan it was written from (NaN pads aside), with the
     /// stamp and pose of the TUM file.
-    static void expect_same_scans(const fs::path& path, bool has_nan_pad) {
+    static void expect_same_scans(const fs::path& path, bool has_nan_pad,
+                                  const std::string& intensity_field) {
         const ScanSequence seq = ScanSequence::open(path, with_poses());
         ASSERT_EQ(seq.size(), static_cast<std::size_t>(kFrames));
         const std::vector<StampedPose> tum = read_tum_poses(rec("poses.tum"));
@@ -118,6 +126,14 @@ class Recordings : public ::testing::Test {
             }
             if (has_nan_pad) {
                 EXPECT_TRUE(std::isnan(scan.points_sensor.back().x()));
+            }
+            // Each fixture names the intensity differently (float32, uint16, uint8); every one
+            // gives the KITTI column back exactly.
+            EXPECT_EQ(scan.intensity_field, intensity_field);
+            ASSERT_EQ(scan.intensity.size(), scan.points_sensor.size());
+            for (std::size_t i = 0; i < expected.size(); ++i) {
+                ASSERT_EQ(scan.intensity[i], intensities_[static_cast<std::size_t>(f)][i])
+                    << path << " frame " << f << " point " << i;
             }
             EXPECT_NEAR(scan.stamp_s, kStamp0S + kFramePeriodS * f, kPoseStampToleranceS);
             // Stamps at pose times take the pose exactly (no interpolation arithmetic).
@@ -136,23 +152,35 @@ class Recordings : public ::testing::Test {
     static inline bool writer_ok_ = false;
     static inline fs::path root_;
     static inline std::vector<std::vector<Eigen::Vector3f>> scans_;
+    static inline std::vector<std::vector<float>> intensities_;
 };
 
 TEST_F(Recordings, Ros1BagsUncompressedBz2Lz4GiveTheKittiScans) {
     for (const char* name : {"street.bag", "street_bz2.bag", "street_lz4.bag"}) {
         SCOPED_TRACE(name);
-        expect_same_scans(rec(name), false);
+        expect_same_scans(rec(name), false, "intensity");
     }
 }
 
 TEST_F(Recordings, Ros2SqliteBagGivesTheKittiScans) {
-    expect_same_scans(rec("street_db3"), true);
-    expect_same_scans(rec("street_db3") / "street_db3_0.db3", true);  // a bare .db3 file too
+    expect_same_scans(rec("street_db3"), true, "reflectivity");
+    // A bare .db3 file too.
+    expect_same_scans(rec("street_db3") / "street_db3_0.db3", true, "reflectivity");
 }
 
 TEST_F(Recordings, McapBagOfTwoFilesAndBareMcapGiveTheKittiScans) {
-    expect_same_scans(rec("street_mcap"), false);
-    expect_same_scans(rec("street.mcap"), false);
+    expect_same_scans(rec("street_mcap"), false, "i");
+    expect_same_scans(rec("street.mcap"), false, "i");
+}
+
+TEST_F(Recordings, KittiFolderKeepsItsIntensityColumn) {
+    ScanSequenceOptions options;
+    const ScanSequence seq = ScanSequence::open(root_ / "kitti", options);
+    for (int f = 0; f < kFrames; ++f) {
+        const Scan scan = seq.load(static_cast<std::size_t>(f));
+        EXPECT_EQ(scan.intensity, intensities_[static_cast<std::size_t>(f)]) << f;
+        EXPECT_EQ(scan.intensity_field, "4th column");
+    }
 }
 
 TEST_F(Recordings, TopicsListTypesAndCounts) {
@@ -330,6 +358,114 @@ TEST(PointCloud2, EncodeDecodeRoundTripsBothEncodings) {
         EXPECT_EQ(back.point_time_s, scan.point_time_s);
         EXPECT_EQ(back.time_field, "t");
         EXPECT_EQ(decode_header_stamp_s(encode_point_cloud2(scan, enc), enc, "memory"), 12.25);
+        // Without intensities the encoder pads the field with 0, which reads as none.
+        EXPECT_TRUE(back.intensity.empty());
+        EXPECT_EQ(back.intensity_field, "");
+    }
+    // Given intensities go into the field and come back, NaN included (its point is kept).
+    scan.intensity = {41.5f, NAN};
+    for (MessageEncoding enc : {MessageEncoding::kCdr, MessageEncoding::kRos1}) {
+        const PointCloud2Scan back =
+            decode_point_cloud2(encode_point_cloud2(scan, enc), enc, "memory");
+        ASSERT_EQ(back.intensity.size(), 2u);
+        EXPECT_EQ(back.intensity[0], 41.5f);
+        EXPECT_TRUE(std::isnan(back.intensity[1]));
+        EXPECT_EQ(back.intensity_field, "intensity");
+    }
+    scan.intensity = {1.0f};  // not one per point
+    EXPECT_THROW(encode_point_cloud2(scan, MessageEncoding::kCdr), DataError);
+}
+
+/// A ROS 1 PointCloud2 of one point at (1, 2, 3) with the fields `extra` after x y z, laid out by
+/// hand per sensor_msgs/PointCloud2 (seq, stamp, frame_id, height, width, fields, is_bigendian,
+/// point_step, row_step, data, is_dense): the bytes of `extra_data` follow x y z in the point.
+std::string ros1_cloud_with(
+    const std::vector<std::tuple<std::string, std::uint8_t, std::uint32_t>>& extra,
+    const std::string& extra_data) {
+    std::string m;
+    const auto u32 = [&m](std::uint32_t v) { m.append(reinterpret_cast<const char*>(&v), 4); };
+    const auto str = [&](const std::string& s) {
+        u32(static_cast<std::uint32_t>(s.size()));
+        m += s;
+    };
+    u32(0);  // seq
+    u32(7);  // stamp.sec
+    u32(0);  // stamp.nsec
+    str("lidar");
+    u32(1);  // height
+    u32(1);  // width
+    u32(static_cast<std::uint32_t>(3 + extra.size()));
+    std::uint32_t offset = 0;
+    for (const char* axis : {"x", "y", "z"}) {
+        str(axis);
+        u32(offset);
+        m += static_cast<char>(7);  // FLOAT32
+        u32(1);
+        offset += 4;
+    }
+    std::uint32_t extra_offset = offset;
+    for (const auto& [name, datatype, count] : extra) {
+        str(name);
+        u32(extra_offset);
+        m += static_cast<char>(datatype);
+        u32(count);
+        extra_offset += datatype == 8 ? 8 : (datatype >= 5 ? 4 : (datatype >= 3 ? 2 : 1));
+    }
+    const std::uint32_t point_step = 12 + static_cast<std::uint32_t>(extra_data.size());
+    m += '\0';  // is_bigendian
+    u32(point_step);
+    u32(point_step);  // row_step
+    std::string data(12, '\0');
+    const float xyz[3] = {1.0f, 2.0f, 3.0f};
+    std::memcpy(data.data(), xyz, 12);
+    data += extra_data;
+    str(data);
+    m += '\1';  // is_dense
+    return m;
+}
+
+TEST(PointCloud2, IntensityFieldsOfEveryTypeInOrderOfPreference) {
+    const auto decode = [](const std::string& message) {
+        return decode_point_cloud2(message, MessageEncoding::kRos1, "bag 'x.bag', message 0");
+    };
+    // int16 -7, and a uint8 `i` after it: `reflectivity` comes before `i`.
+    std::string bytes;
+    const std::int16_t minus_seven = -7;
+    bytes.append(reinterpret_cast<const char*>(&minus_seven), 2);
+    bytes += static_cast<char>(200);
+    PointCloud2Scan scan = decode(ros1_cloud_with({{"Reflectivity", 3, 1}, {"i", 2, 1}}, bytes));
+    ASSERT_EQ(scan.intensity.size(), 1u);
+    EXPECT_EQ(scan.intensity[0], -7.0f);
+    EXPECT_EQ(scan.intensity_field, "Reflectivity");
+    // The uint8 alone: as stored, not rescaled to 0..1.
+    scan = decode(ros1_cloud_with({{"ring", 4, 1}, {"i", 2, 1}}, std::string("\0\0", 2) + "\xc8"));
+    ASSERT_EQ(scan.intensity.size(), 1u);
+    EXPECT_EQ(scan.intensity[0], 200.0f);
+    // uint32 and float64 `intensity` win over `reflectivity`.
+    const std::uint32_t big = 4000000000u;
+    std::string u32_bytes(reinterpret_cast<const char*>(&big), 4);
+    scan = decode(ros1_cloud_with({{"reflectivity", 2, 1}, {"intensity", 6, 1}},
+                                  std::string("\x05", 1) + u32_bytes));
+    EXPECT_EQ(scan.intensity, std::vector<float>{4e9f});
+    const double precise = 0.1234567890123;
+    scan = decode(ros1_cloud_with({{"intensity", 8, 1}},
+                                  std::string(reinterpret_cast<const char*>(&precise), 8)));
+    EXPECT_EQ(scan.intensity, std::vector<float>{static_cast<float>(precise)});
+    // No intensity field: none.
+    scan = decode(ros1_cloud_with({{"ring", 4, 1}}, std::string("\1\0", 2)));
+    EXPECT_TRUE(scan.intensity.empty());
+    // An unknown datatype or a count other than 1 is a DataError naming the message.
+    for (const auto& [datatype, count] :
+         {std::pair<std::uint8_t, std::uint32_t>{9, 1}, {7, 0}, {7, 3}}) {
+        try {
+            decode(ros1_cloud_with({{"intensity", datatype, count}}, std::string(12, '\0')));
+            ADD_FAILURE() << "expected DataError for datatype " << int(datatype) << " count "
+                          << count;
+        } catch (const DataError& e) {
+            const std::string m = e.what();
+            EXPECT_NE(m.find("x.bag"), std::string::npos) << m;
+            EXPECT_NE(m.find("intensity field 'intensity'"), std::string::npos) << m;
+        }
     }
 }
 

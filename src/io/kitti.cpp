@@ -15,6 +15,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/io/file_contents.hpp"
+#include "shine/io/point_intensity.hpp"
 
 namespace shine {
 namespace fs = std::filesystem;
@@ -118,13 +119,14 @@ std::string format_row_major(const Eigen::Isometry3d& T) {
 }  // namespace
 }  // namespace kitti_internal
 
-std::vector<Eigen::Vector3f> read_kitti_bin(const fs::path& path) {
+std::vector<Eigen::Vector3f> read_kitti_bin(const fs::path& path, std::vector<float>* intensity) {
     // A sensor may return nothing (e.g. blocked or still spinning up): an empty scan is valid.
     return parse_kitti_bin(read_file_contents(path, "KITTI file", "a .bin file", EmptyFile::kAllow),
-                           path);
+                           path, intensity);
 }
 
-std::vector<Eigen::Vector3f> parse_kitti_bin(std::string_view data, const fs::path& path) {
+std::vector<Eigen::Vector3f> parse_kitti_bin(std::string_view data, const fs::path& path,
+                                             std::vector<float>* intensity) {
     using namespace kitti_internal;
     constexpr std::size_t kPointBytes = 4 * sizeof(float);
     if (data.size() % kPointBytes != 0) {
@@ -137,26 +139,36 @@ std::vector<Eigen::Vector3f> parse_kitti_bin(std::string_view data, const fs::pa
     }
     const std::size_t n = data.size() / kPointBytes;
     std::vector<Eigen::Vector3f> points(n);
+    if (intensity != nullptr) intensity->resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-        float xyz[3];
-        std::memcpy(xyz, data.data() + i * kPointBytes, sizeof(xyz));
+        float record[4];
+        std::memcpy(record, data.data() + i * kPointBytes, sizeof(record));
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
-        for (float& f : xyz) {
+        for (float& f : record) {
             char* b = reinterpret_cast<char*>(&f);
             std::swap(b[0], b[3]);
             std::swap(b[1], b[2]);
         }
 #endif
-        points[i] = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]);
+        points[i] = Eigen::Vector3f(record[0], record[1], record[2]);
+        if (intensity != nullptr) (*intensity)[i] = record[3];
     }
+    if (intensity != nullptr) drop_unmeasured_intensity(*intensity);
     return points;
 }
 
-void write_kitti_bin(const fs::path& path, const std::vector<Eigen::Vector3f>& points) {
+void write_kitti_bin(const fs::path& path, const std::vector<Eigen::Vector3f>& points,
+                     const std::vector<float>& intensity) {
+    if (!intensity.empty() && intensity.size() != points.size()) {
+        throw DataError("cannot write '" + path.string() + "': " + std::to_string(points.size()) +
+                        " points but " + std::to_string(intensity.size()) +
+                        " intensities (must be one per point, or none)");
+    }
     std::string buffer(points.size() * 16, '\0');
     char* out = buffer.data();
-    for (const auto& p : points) {
-        const float record[4] = {p.x(), p.y(), p.z(), 0.0f};
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const Eigen::Vector3f& p = points[i];
+        const float record[4] = {p.x(), p.y(), p.z(), intensity.empty() ? 0.0f : intensity[i]};
         std::memcpy(out, record, sizeof(record));
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
         for (int k = 0; k < 4; ++k) {

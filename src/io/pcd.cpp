@@ -17,6 +17,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/io/file_contents.hpp"
+#include "shine/io/point_intensity.hpp"
 #include "shine/io/point_times.hpp"
 
 namespace shine {
@@ -74,7 +75,8 @@ struct Header {
     std::size_t data_offset = 0;
     std::size_t data_line = 0;
     int xyz_field[3] = {-1, -1, -1};
-    int time_field = -1;  ///< the per-point time field (point_times.hpp), -1 without one
+    int time_field = -1;       ///< the per-point time field (point_times.hpp), -1 without one
+    int intensity_field = -1;  ///< the intensity field (point_intensity.hpp), -1 without one
 };
 
 Header parse_header(const fs::path& path, std::string_view data) {
@@ -246,6 +248,24 @@ Header parse_header(const fs::path& path, std::string_view data) {
             }
         }
     }
+    {
+        std::vector<std::string> names;
+        for (const Field& f : h.fields) names.push_back(f.name);
+        h.intensity_field = find_intensity_field(names);
+        if (h.intensity_field >= 0) {
+            const Field& f = h.fields[h.intensity_field];
+            if (f.count != 1) {
+                fail(path, line_text(counts_line),
+                     "intensity field '" + f.name + "' has COUNT " + std::to_string(f.count) +
+                         " (expected 1: one value per point)");
+            }
+            if (f.type == 'F' && f.size != 4 && f.size != 8) {
+                fail(path, line_text(sizes_line),
+                     "intensity field '" + f.name + "' is TYPE F with SIZE " +
+                         std::to_string(f.size) + " (expected 4 or 8)");
+            }
+        }
+    }
     if (!have_width && !have_points) fail(path, header_where, "has neither WIDTH nor POINTS");
     if (have_width) {
         if (height != 0 && width > UINT64_MAX / height) {
@@ -305,7 +325,8 @@ double read_value(const char* p, const Field& f) {
 }
 
 std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view data,
-                                        const Header& h, std::vector<double>* times) {
+                                        const Header& h, std::vector<double>* times,
+                                        std::vector<float>* intensity) {
     const std::size_t remaining = data.size() - h.data_offset;
     // Each point needs at least one character and one separator per value.
     if (h.points > (remaining + 1) / (2 * h.token_count)) {
@@ -325,6 +346,8 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view d
     for (int axis = 0; axis < 3; ++axis) xyz_token[axis] = token_of(h.xyz_field[axis]);
     const std::size_t time_token = h.time_field >= 0 ? token_of(h.time_field) : 0;
     if (h.time_field >= 0) times->reserve(static_cast<std::size_t>(h.points));
+    const std::size_t intensity_token = h.intensity_field >= 0 ? token_of(h.intensity_field) : 0;
+    if (h.intensity_field >= 0) intensity->reserve(static_cast<std::size_t>(h.points));
     std::vector<Eigen::Vector3f> points;
     points.reserve(static_cast<std::size_t>(h.points));
     std::size_t pos = h.data_offset;
@@ -365,6 +388,15 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view d
             }
             times->push_back(t);
         }
+        if (h.intensity_field >= 0) {
+            double value = 0.0;
+            if (!parse_double(words[intensity_token], &value)) {
+                fail(path, where,
+                     "intensity '" + printable_excerpt(words[intensity_token]) +
+                         "' is not a number");
+            }
+            intensity->push_back(static_cast<float>(value));
+        }
         points.push_back(p);
     }
     if (points.size() != h.points) {
@@ -376,7 +408,8 @@ std::vector<Eigen::Vector3f> read_ascii(const fs::path& path, std::string_view d
 }
 
 std::vector<Eigen::Vector3f> read_binary(const fs::path& path, std::string_view data,
-                                         const Header& h, std::vector<double>* times) {
+                                         const Header& h, std::vector<double>* times,
+                                         std::vector<float>* intensity) {
     const std::size_t remaining = data.size() - h.data_offset;
     if (h.points > remaining / h.record_size) {
         fail(path, "byte offset " + std::to_string(h.data_offset),
@@ -398,6 +431,14 @@ std::vector<Eigen::Vector3f> read_binary(const fs::path& path, std::string_view 
         times->resize(points.size());
         for (std::size_t i = 0; i < points.size(); ++i) {
             (*times)[i] = read_value(base + i * h.record_size + f.offset, f);
+        }
+    }
+    if (h.intensity_field >= 0) {
+        const Field& f = h.fields[h.intensity_field];
+        intensity->resize(points.size());
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            (*intensity)[i] =
+                static_cast<float>(read_value(base + i * h.record_size + f.offset, f));
         }
     }
     return points;
@@ -451,7 +492,8 @@ void lzf_decompress(const unsigned char* in, std::size_t in_size, unsigned char*
 }
 
 std::vector<Eigen::Vector3f> read_compressed(const fs::path& path, std::string_view data,
-                                             const Header& h, std::vector<double>* times) {
+                                             const Header& h, std::vector<double>* times,
+                                             std::vector<float>* intensity) {
     const std::size_t remaining = data.size() - h.data_offset;
     const std::string sizes_where = "byte offset " + std::to_string(h.data_offset);
     if (remaining < 8) {
@@ -499,6 +541,14 @@ std::vector<Eigen::Vector3f> read_compressed(const fs::path& path, std::string_v
         times->resize(n);
         for (std::size_t i = 0; i < n; ++i) (*times)[i] = read_value(column + i * f.size, f);
     }
+    if (h.intensity_field >= 0) {
+        const Field& f = h.fields[h.intensity_field];
+        const char* column = soa.data() + f.offset * n;
+        intensity->resize(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            (*intensity)[i] = static_cast<float>(read_value(column + i * f.size, f));
+        }
+    }
     return points;
 }
 
@@ -525,13 +575,13 @@ TimedPoints parse_pcd_scan(std::string_view data, const fs::path& path,
     std::vector<double> raw_times;
     switch (header.encoding) {
         case Encoding::kAscii:
-            scan.points_sensor = read_ascii(path, data, header, &raw_times);
+            scan.points_sensor = read_ascii(path, data, header, &raw_times, &scan.intensity);
             break;
         case Encoding::kBinary:
-            scan.points_sensor = read_binary(path, data, header, &raw_times);
+            scan.points_sensor = read_binary(path, data, header, &raw_times, &scan.intensity);
             break;
         case Encoding::kBinaryCompressed:
-            scan.points_sensor = read_compressed(path, data, header, &raw_times);
+            scan.points_sensor = read_compressed(path, data, header, &raw_times, &scan.intensity);
             break;
     }
     if (header.time_field >= 0) {
@@ -541,6 +591,8 @@ TimedPoints parse_pcd_scan(std::string_view data, const fs::path& path,
         scan.point_time_s =
             point_times_relative_s(raw_times, f.type != 'F', stamp_s, &scan.time_format);
     }
+    drop_unmeasured_intensity(scan.intensity);
+    if (!scan.intensity.empty()) scan.intensity_field = header.fields[header.intensity_field].name;
     return scan;
 }
 

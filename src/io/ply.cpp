@@ -22,6 +22,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/io/file_contents.hpp"
+#include "shine/io/point_intensity.hpp"
 
 namespace shine {
 namespace fs = std::filesystem;
@@ -437,6 +438,9 @@ struct ReadResult {
     std::vector<double> raw_times;
     std::string time_field;  ///< "" without one
     Scalar time_type = Scalar::kFloat32;
+    /// Points only: the vertex element's intensity (point_intensity.hpp), as stored.
+    std::vector<float> intensity;
+    std::string intensity_field;  ///< "" without one
 };
 
 /// Reads a list length and checks it is a sane non-negative integer.
@@ -492,6 +496,23 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
                     result->raw_times.resize(static_cast<std::size_t>(e.count));
                 }
             }
+            // Scans: the intensity, the first property with an intensity field's name.
+            int intensity_index = -1;
+            if (!want_faces) {
+                std::vector<std::string> names;
+                for (const Property& p : e.properties) names.push_back(p.name);
+                intensity_index = find_intensity_field(names);
+                if (intensity_index >= 0) {
+                    const Property& p = e.properties[intensity_index];
+                    if (p.is_list) {
+                        fail(path, element_where,
+                             "intensity property '" + printable_excerpt(p.name) +
+                                 "' is a list (expected one scalar per vertex)");
+                    }
+                    result->intensity_field = p.name;
+                    result->intensity.resize(static_cast<std::size_t>(e.count));
+                }
+            }
             mesh.vertices.resize(static_cast<std::size_t>(e.count));
             for (std::uint64_t v = 0; v < e.count; ++v) {
                 Eigen::Vector3f& out = mesh.vertices[static_cast<std::size_t>(v)];
@@ -511,6 +532,9 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
                     }
                     if (static_cast<int>(i) == time_index) {
                         result->raw_times[static_cast<std::size_t>(v)] = value;
+                    }
+                    if (static_cast<int>(i) == intensity_index) {
+                        result->intensity[static_cast<std::size_t>(v)] = static_cast<float>(value);
                     }
                 }
                 // Scans may hold NaN for "no return" (preprocess_scan drops it); a mesh vertex
@@ -701,6 +725,9 @@ TimedPoints parse_ply_scan(std::string_view data, const fs::path& source,
         scan.point_time_s = point_times_relative_s(read.raw_times, is_integer(read.time_type),
                                                    stamp_s, &scan.time_format);
     }
+    scan.intensity = std::move(read.intensity);
+    drop_unmeasured_intensity(scan.intensity);
+    if (!scan.intensity.empty()) scan.intensity_field = read.intensity_field;
     return scan;
 }
 

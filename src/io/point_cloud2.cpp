@@ -11,6 +11,7 @@
 
 #include "recording_bytes.hpp"
 #include "shine/core/error.hpp"
+#include "shine/io/point_intensity.hpp"
 #include "shine/io/point_times.hpp"
 
 namespace shine {
@@ -221,6 +222,25 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
                             "(seconds)");
         }
     }
+    const Field* intensity = nullptr;
+    {
+        std::vector<std::string> names;
+        for (const Field& f : cloud.fields) names.push_back(f.name);
+        const int index = find_intensity_field(names);
+        if (index >= 0) intensity = &cloud.fields[static_cast<std::size_t>(index)];
+    }
+    if (intensity) {
+        if (datatype_bytes(intensity->datatype) == 0) {
+            throw DataError(where + ": intensity field '" + intensity->name + "' has datatype " +
+                            std::to_string(intensity->datatype) +
+                            "; supported are sensor_msgs/PointField's 1 (int8) to 8 (float64)");
+        }
+        if (intensity->count != 1) {
+            throw DataError(where + ": intensity field '" + intensity->name + "' has count " +
+                            std::to_string(intensity->count) +
+                            "; expected 1 (one value per point)");
+        }
+    }
     const std::uint64_t n_points = std::uint64_t{cloud.width} * cloud.height;
     if (n_points == 0) return out;
     // Every field used must lie inside a point; every point inside the data.
@@ -233,6 +253,7 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
     };
     for (const Field* f : axes) check_field(*f, datatype_bytes(f->datatype));
     if (time) check_field(*time, datatype_bytes(time->datatype));
+    if (intensity) check_field(*intensity, datatype_bytes(intensity->datatype));
     if (std::uint64_t{cloud.width} * cloud.point_step > cloud.row_step) {
         throw IoError(where + ": row_step " + std::to_string(cloud.row_step) +
                       " is smaller than width " + std::to_string(cloud.width) + " x point_step " +
@@ -248,6 +269,7 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
     out.points_sensor.reserve(static_cast<std::size_t>(n_points));
     std::vector<double> raw_time;
     if (time) raw_time.reserve(static_cast<std::size_t>(n_points));
+    if (intensity) out.intensity.reserve(static_cast<std::size_t>(n_points));
     for (std::uint32_t row = 0; row < cloud.height; ++row) {
         const char* row_data = cloud.data.data() + std::size_t{row} * cloud.row_step;
         for (std::uint32_t col = 0; col < cloud.width; ++col) {
@@ -262,6 +284,10 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
             if (time) {
                 raw_time.push_back(read_number(p + time->offset, time->datatype));
             }
+            if (intensity) {
+                out.intensity.push_back(
+                    static_cast<float>(read_number(p + intensity->offset, intensity->datatype)));
+            }
         }
     }
     if (time) {
@@ -274,6 +300,8 @@ PointCloud2Scan decode_point_cloud2(std::string_view message, MessageEncoding en
         out.point_time_s = point_times_relative_s(raw_time, integer, out.stamp_s, &out.time_format);
         out.time_field = time->name;
     }
+    drop_unmeasured_intensity(out.intensity);
+    if (!out.intensity.empty()) out.intensity_field = intensity->name;
     return out;
 }
 
@@ -333,6 +361,14 @@ std::string encode_point_cloud2(const PointCloud2Scan& scan, MessageEncoding enc
     using namespace point_cloud2_internal;
     const bool cdr = encoding == MessageEncoding::kCdr;
     const bool with_time = !scan.point_time_s.empty();
+    const bool with_intensity = !scan.intensity.empty();
+    if ((with_time && scan.point_time_s.size() != scan.points_sensor.size()) ||
+        (with_intensity && scan.intensity.size() != scan.points_sensor.size())) {
+        throw DataError("encode_point_cloud2: " + std::to_string(scan.points_sensor.size()) +
+                        " points, " + std::to_string(scan.point_time_s.size()) + " times and " +
+                        std::to_string(scan.intensity.size()) +
+                        " intensities (each must be one per point, or none)");
+    }
     Writer w(cdr);
     if (!cdr) w.u32(0);  // seq
     const double sec = std::floor(scan.stamp_s);
@@ -360,6 +396,7 @@ std::string encode_point_cloud2(const PointCloud2Scan& scan, MessageEncoding enc
     std::string data(scan.points_sensor.size() * point_step, '\0');
     for (std::size_t i = 0; i < scan.points_sensor.size(); ++i) {
         std::memcpy(&data[i * point_step], scan.points_sensor[i].data(), 12);
+        if (with_intensity) std::memcpy(&data[i * point_step + 12], &scan.intensity[i], 4);
         if (with_time) std::memcpy(&data[i * point_step + 16], &scan.point_time_s[i], 8);
     }
     w.bytes(data);

@@ -350,18 +350,23 @@ Scan ScanSequence::load_as_stored(std::size_t i) const {
         scan.points_sensor = std::move(cloud.points_sensor);
         scan.point_time_s = std::move(cloud.point_time_s);
         scan.point_time_format = std::move(cloud.time_format);
+        scan.intensity = std::move(cloud.intensity);
+        scan.intensity_field = std::move(cloud.intensity_field);
         scan.stamp_s = stamps_s_.at(i);
         return scan;
     }
     const std::string ext = lower_extension(scan.source);
     if (ext == ".bin") {
-        scan.points_sensor = read_kitti_bin(scan.source);
+        scan.points_sensor = read_kitti_bin(scan.source, &scan.intensity);
+        if (!scan.intensity.empty()) scan.intensity_field = "4th column";
     } else if (ext == ".ply" || ext == ".pcd") {
         TimedPoints points =
             ext == ".ply" ? read_ply_scan(scan.source) : read_pcd_scan(scan.source);
         scan.points_sensor = std::move(points.points_sensor);
         scan.point_time_s = std::move(points.point_time_s);
         scan.point_time_format = std::move(points.time_format);
+        scan.intensity = std::move(points.intensity);
+        scan.intensity_field = std::move(points.intensity_field);
     } else {
         throw IoError("scan '" + scan.source.string() + "' has an unsupported extension");
     }

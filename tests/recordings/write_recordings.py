@@ -11,10 +11,11 @@ Writes into OUT_DIR:
                                                      t uint32 ns, point_step padded to 32
   street_db3/          ROS 2 bag: metadata.yaml + street_db3_0.db3 (python3's sqlite3 module,
                        rosbag2's humble schema); organised clouds (height 2, a NaN pad point when
-                       the count is odd), x y z float64, time float32 s relative
+                       the count is odd), x y z float64, time float32 s relative, reflectivity
+                       uint16 (the KITTI intensity rounded)
   street_mcap/         ROS 2 bag: metadata.yaml + two MCAP files (zstd chunks, then lz4 chunks),
-                       written from the MCAP spec by this script; x y z float32, timestamp float64
-                       absolute
+                       written from the MCAP spec by this script; x y z float32, i uint8 (the
+                       KITTI intensity rounded, clamped to 0..255), timestamp float64 absolute
   street.mcap          one MCAP file, uncompressed chunks, schema/channel inside the chunks
   two_topics.bag       two PointCloud2 topics (/points, /points_b)
   strings.bag          only std_msgs/String messages
@@ -31,9 +32,16 @@ import struct
 import sys
 import zlib
 
-FLOAT32, FLOAT64, UINT16, UINT32 = 7, 8, 4, 6
-SIZES = {FLOAT32: 4, FLOAT64: 8, UINT16: 2, UINT32: 4}
-PACK = {FLOAT32: "<f", FLOAT64: "<d", UINT16: "<H", UINT32: "<I"}
+UINT8, FLOAT32, FLOAT64, UINT16, UINT32 = 2, 7, 8, 4, 6
+SIZES = {UINT8: 1, FLOAT32: 4, FLOAT64: 8, UINT16: 2, UINT32: 4}
+PACK = {UINT8: "<B", FLOAT32: "<f", FLOAT64: "<d", UINT16: "<H", UINT32: "<I"}
+
+
+def as_integer(value, largest):
+    """An intensity as an unsigned integer field holds it: rounded, clamped, NaN as 0."""
+    if math.isnan(value):
+        return 0
+    return max(0, min(largest, int(round(value))))
 
 
 def read_kitti(kitti_dir, frames):
@@ -89,6 +97,8 @@ def cloud_data(points, fields, point_step, times, nan_pad_to=None):
         else:
             values = {"x": math.nan, "y": math.nan, "z": math.nan, "intensity": 0.0, "ring": 0}
         values["t"] = values["time"] = values["timestamp"] = times[min(i, len(times) - 1)]
+        values["reflectivity"] = as_integer(values["intensity"], 65535)
+        values["i"] = as_integer(values["intensity"], 255)
         for name, offset, datatype in fields:
             struct.pack_into(PACK[datatype], buf, offset, values[name])
         rows.append(bytes(buf))
@@ -238,7 +248,8 @@ def metadata_yaml(storage, files, topic, type_name, count, stamps):
 
 
 def db3_messages(scans, stamps):
-    fields = [("x", 0, FLOAT64), ("y", 8, FLOAT64), ("z", 16, FLOAT64), ("time", 24, FLOAT32)]
+    fields = [("x", 0, FLOAT64), ("y", 8, FLOAT64), ("z", 16, FLOAT64), ("time", 24, FLOAT32),
+              ("reflectivity", 28, UINT16)]
     for points, stamp in zip(scans, stamps):
         width = (len(points) + 1) // 2
         times = [0.1 * i / max(1, len(points)) for i in range(len(points))]
@@ -332,7 +343,8 @@ def write_mcap(path, messages, compression, per_chunk=4, channel_in_chunk=False)
 
 
 def mcap_messages(scans, stamps):
-    fields = [("x", 0, FLOAT32), ("y", 4, FLOAT32), ("z", 8, FLOAT32), ("timestamp", 16, FLOAT64)]
+    fields = [("x", 0, FLOAT32), ("y", 4, FLOAT32), ("z", 8, FLOAT32), ("i", 12, UINT8),
+              ("timestamp", 16, FLOAT64)]
     out = []
     for points, stamp in zip(scans, stamps):
         times = [stamp + 0.1 * i / max(1, len(points)) for i in range(len(points))]

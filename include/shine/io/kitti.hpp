@@ -15,16 +15,21 @@ namespace shine {
 /// Reads a KITTI .bin scan: little-endian float32 x y z intensity per point, sensor frame.
 /// An empty file is a scan without returns and gives zero points. Throws IoError if the file is
 /// missing or its size is not a multiple of 16 bytes (naming the byte offset of the partial
-/// record). Points are returned as stored (NaN included: preprocess_scan filters);
-/// intensities are discarded.
-std::vector<Eigen::Vector3f> read_kitti_bin(const std::filesystem::path& path);
+/// record). Points are returned as stored (NaN included: preprocess_scan filters). With
+/// `intensity`, it receives the 4th column as stored, one per point, or is left empty when every
+/// value is 0 or not finite (a .bin written without intensity; point_intensity.hpp).
+std::vector<Eigen::Vector3f> read_kitti_bin(const std::filesystem::path& path,
+                                            std::vector<float>* intensity = nullptr);
 
 /// read_kitti_bin on bytes already in memory; `source` names them in messages.
 std::vector<Eigen::Vector3f> parse_kitti_bin(std::string_view data,
-                                             const std::filesystem::path& source);
+                                             const std::filesystem::path& source,
+                                             std::vector<float>* intensity = nullptr);
 
-/// Writes a KITTI .bin scan atomically (intensity written as 0).
-void write_kitti_bin(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points);
+/// Writes a KITTI .bin scan atomically: `intensity` as the 4th column (empty: 0 for every
+/// point). Throws DataError naming `path` if `intensity` is neither empty nor one per point.
+void write_kitti_bin(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points,
+                     const std::vector<float>& intensity = {});
 
 /// Reads a KITTI pose file: one pose per non-empty line, 12 numbers, row-major 3x4 [R|t].
 /// Throws IoError naming the line on a wrong count, a non-number, a non-finite value or a rotation

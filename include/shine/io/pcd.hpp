@@ -26,7 +26,10 @@ std::vector<Eigen::Vector3f> parse_pcd_points(std::string_view data,
 /// Reads a PCD scan: the points as read_pcd_points, and the per-point times of the first field
 /// named t, time, timestamp or offset_time with COUNT 1 (any TYPE and SIZE; unit and reference by
 /// point_times.hpp's rules, `stamp_s` the scan's stamp when it has one). Without such a field
-/// point_time_s is empty. Throws IoError as read_pcd_points.
+/// point_time_s is empty. The intensity is the first field named intensity, reflectivity,
+/// reflectance, scalar_intensity or i (without case; any TYPE, as float, never rescaled; empty
+/// when every value is 0 or not finite; point_intensity.hpp). Throws IoError as read_pcd_points,
+/// and for an intensity field with COUNT other than 1 or TYPE F of SIZE other than 4 or 8.
 TimedPoints read_pcd_scan(const std::filesystem::path& path,
                           std::optional<double> stamp_s = std::nullopt);
 

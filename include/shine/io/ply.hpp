@@ -89,7 +89,11 @@ std::vector<Eigen::Vector3f> parse_ply_points(std::string_view data,
 /// Reads a PLY scan: the vertex positions as read_ply_points, and the per-point times of the
 /// vertex element's first property named t, time, timestamp or offset_time (any scalar type;
 /// unit and reference by point_times.hpp's rules, `stamp_s` the scan's stamp when it has one).
-/// Without such a property point_time_s is empty. Throws IoError as read_ply_mesh.
+/// Without such a property point_time_s is empty. The intensity is the first vertex property
+/// named intensity, reflectivity, reflectance, scalar_intensity or i (without case, so
+/// CloudCompare's scalar_Intensity too; any scalar type, as float, never rescaled; empty when every
+/// value is 0 or not finite; point_intensity.hpp). Throws IoError as read_ply_mesh, and for an
+/// intensity property that is a list.
 TimedPoints read_ply_scan(const std::filesystem::path& path,
                           std::optional<double> stamp_s = std::nullopt);
 

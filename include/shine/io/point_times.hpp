@@ -35,12 +35,16 @@ struct PointTimeFormat {
     std::string describe() const;
 };
 
-/// Points of one scan in the sensor frame with their times, as the scan readers return them.
+/// Points of one scan in the sensor frame with their times and intensities, as the scan readers
+/// return them.
 struct TimedPoints {
     std::vector<Eigen::Vector3f> points_sensor;
     /// Seconds relative to the scan's reference time, one per point; empty without a time field.
     std::vector<double> point_time_s;
     PointTimeFormat time_format;  ///< how point_time_s was read (field "" without one)
+    /// Per-point intensity as stored, one per point; empty without one (point_intensity.hpp).
+    std::vector<float> intensity;
+    std::string intensity_field;  ///< the field intensity came from ("" without one)
 };
 
 /// Stored values span at most this many seconds within one scan (else they are nanoseconds).

@@ -55,6 +55,13 @@ struct Scan {
     /// a scan is deskewed (its points moved into the sensor frame at the scan's time, while the
     /// sensor moved during the sweep); empty: at the frame's origin for every point.
     std::vector<Eigen::Vector3f> point_origin_sensor;
+    /// Intensity of each point as the sensor gives it, never rescaled (a KITTI .bin's 4th
+    /// column, 0..1 for KITTI's Velodyne; a uint8 field 0..255): one per point of
+    /// points_sensor, or empty when the scan has none -- no intensity field, or every value 0 or
+    /// not finite (a KITTI .bin written without intensity). NaN: that point's is unknown; the
+    /// point is kept. Fields and rules: point_intensity.hpp.
+    std::vector<float> intensity;
+    std::string intensity_field;  ///< the field intensity came from ("" without one)
 };
 
 /// Whether a sequence must come with poses.
