@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "shine/core/error.hpp"
+#include "shine/core/per_point_values.hpp"
 #include "shine/io/preprocess.hpp"
 
 namespace {
@@ -253,4 +254,49 @@ TEST(Preprocess, SourceIndexNamesTheInputPointOfEachOutputPoint) {
             }
         }
     }
+}
+
+TEST(Preprocess, PerPointValuesFollowTheirPointsThroughEveryFilter) {
+    using namespace shine;
+    // Hand-picked points, each with its own intensity, through the NaN, range and voxel filters
+    // (1 m voxels): the kept ones come out sorted by voxel with their own intensities.
+    const std::vector<Eigen::Vector3f> points = {
+        {0.5f, 0.0f, 0.0f},    // 10: closer than min_range_m
+        {5.5f, 0.5f, 0.5f},    // 20: the centre of voxel (5, 0, 0), kept
+        {NAN, 1.0f, 1.0f},     // 30: not finite
+        {5.9f, 0.9f, 0.9f},    // 40: same voxel as 20, farther from its centre: thinned away
+        {-7.5f, 2.5f, 0.5f},   // NaN intensity: kept, its intensity unknown
+        {70.0f, 0.0f, 0.0f},   // 50: beyond max_range_m
+        {0.0f, 12.5f, 3.5f}};  // 0: kept, a zero intensity is a value
+    const std::vector<float> intensity = {10.0f, 20.0f, 30.0f, 40.0f, NAN, 50.0f, 0.0f};
+    PreprocessConfig config;
+    config.voxel_downsample_m = 1.0;
+    std::vector<std::uint32_t> index;
+    const auto kept = preprocess_scan(points, config, "hand", nullptr, nullptr, &index);
+    const std::vector<float> kept_intensity = gather_per_point(intensity, points.size(), index);
+    ASSERT_EQ(kept.size(), 3u);
+    ASSERT_EQ(kept_intensity.size(), 3u);
+    // Voxel keys (-8, 2, 0) < (0, 12, 3) < (5, 0, 0).
+    EXPECT_EQ(kept[0], points[4]);
+    EXPECT_TRUE(std::isnan(kept_intensity[0]));
+    EXPECT_EQ(kept[1], points[6]);
+    EXPECT_EQ(kept_intensity[1], 0.0f);
+    EXPECT_EQ(kept[2], points[1]);
+    EXPECT_EQ(kept_intensity[2], 20.0f);
+    // A quantity the scan does not have stays empty.
+    EXPECT_TRUE(gather_per_point(std::vector<float>{}, points.size(), index).empty());
+    // Dropping by flag keeps every array of the points' size in step, and leaves the others.
+    std::vector<Eigen::Vector3f> p = points;
+    std::vector<float> v = intensity;
+    std::vector<double> none;
+    std::vector<std::uint8_t> flags(points.size(), 0);
+    flags[0] = flags[2] = flags[5] = 1;
+    EXPECT_EQ(drop_flagged(flags, p, v, none), 3u);
+    ASSERT_EQ(p.size(), 4u);
+    ASSERT_EQ(v.size(), 4u);
+    EXPECT_EQ(p[2], points[4]);
+    EXPECT_TRUE(std::isnan(v[2]));
+    EXPECT_EQ(v[3], 0.0f);
+    EXPECT_EQ(v[1], 40.0f);
+    EXPECT_TRUE(none.empty());
 }

@@ -6,6 +6,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "shine/geometry/map_frame.hpp"
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
 #include "shine/odometry/scan_deskew.hpp"
@@ -93,6 +94,63 @@ TEST(ScanInMap, EachKeptPointKeepsTheOriginItWasMeasuredFrom) {
     }
     scan.point_origin_sensor.clear();
     EXPECT_TRUE(scan_in_map_frame(scan, config, sdf, origin_set, stats).point_origins_map.empty());
+}
+
+TEST(ScanInMap, EachKeptPointKeepsItsIntensityThroughThinningCropAndRunDrops) {
+    // 20 000 random points, point i with intensity i (NaN for every 97th: kept with its point),
+    // thinned or grouped in 0.5 m voxels, cropped in the world: every kept point carries the
+    // intensity of the input point it is. A scan without intensity carries none.
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> coordinate(-3.0f, 3.0f);
+    Scan scan;
+    scan.source = "random";
+    scan.T_world_sensor.translation() = Eigen::Vector3d(1000.3, -20.7, 1.1);
+    for (int i = 0; i < 20000; ++i) {
+        scan.points_sensor.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+        scan.intensity.push_back(i % 97 == 5 ? NAN : static_cast<float>(i));
+    }
+    MapperConfig config;
+    config.preprocess.min_range_m = 0.5;
+    config.preprocess.voxel_downsample_m = 0.5;
+    config.preprocess.voxel_points = VoxelPoints::kAll;
+    config.crop_world_m = {999.5, -30.0, -10.0, 1001.5, -18.0, 10.0};  // x from -0.8 m to 1.2 m
+    NeuralSdf sdf(config.octree, config.decoder);
+    bool origin_set = false;
+    PreprocessStats stats;
+    ScanInMap grouped = scan_in_map_frame(scan, config, sdf, origin_set, stats, true);
+    const ScanInMap thinned = scan_in_map_frame(scan, config, sdf, origin_set, stats, false);
+    const Eigen::Isometry3d T_map_sensor = map_from_sensor(scan.T_world_sensor, sdf.origin_world_m);
+    // Point k of `s` is the input point its intensity names (NaN: one of the every-97th).
+    const auto expect_own_intensity = [&](const ScanInMap& s, const char* what) {
+        ASSERT_EQ(s.point_intensity.size(), s.points_map.size()) << what;
+        std::size_t nan = 0;
+        for (std::size_t k = 0; k < s.points_map.size(); ++k) {
+            const float value = s.point_intensity[k];
+            if (std::isnan(value)) {
+                ++nan;
+                continue;
+            }
+            const auto i = static_cast<std::size_t>(value);
+            ASSERT_LT(i, scan.points_sensor.size()) << what;
+            ASSERT_EQ(s.points_map[k],
+                      points_in_map_frame({scan.points_sensor[i]}, T_map_sensor).front())
+                << what << " point " << k << " intensity " << value;
+        }
+        EXPECT_GT(nan, 0u) << what;  // NaN intensities keep their points
+    };
+    ASSERT_GT(thinned.points_map.size(), 100u);
+    ASSERT_LT(grouped.points_map.size(), 20000u / 2);  // the crop removed two thirds
+    expect_own_intensity(thinned, "thinned");
+    expect_own_intensity(grouped, "grouped");
+    // The crop cuts runs, so the leads differ from the thinned scan; each still has its own.
+    expect_own_intensity(voxel_leads(grouped), "leads");
+    std::vector<std::uint8_t> drop(grouped.voxel_begin.size());
+    for (std::size_t r = 1; r < drop.size(); r += 2) drop[r] = 1;
+    drop_voxel_runs(grouped, drop);
+    expect_own_intensity(grouped, "grouped after dropping every second run");
+    expect_own_intensity(voxel_leads(grouped), "leads after dropping");
+    scan.intensity.clear();
+    EXPECT_TRUE(scan_in_map_frame(scan, config, sdf, origin_set, stats).point_intensity.empty());
 }
 
 TEST(ScanInMap, DeskewingGivesEachPointTheSensorPositionAtItsTime) {

@@ -37,7 +37,7 @@ std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
                               const std::vector<double>& box_world_m,
                               const Eigen::Vector3d& origin_world_m,
                               std::vector<std::uint32_t>* voxel_begin,
-                              std::vector<Eigen::Vector3f>* per_point) {
+                              std::vector<std::uint32_t>* source_index) {
     if (box_world_m.size() != 6) return 0;
     const Eigen::Vector3d lo =
         Eigen::Vector3d(box_world_m[0], box_world_m[1], box_world_m[2]) - origin_world_m;
@@ -50,7 +50,7 @@ std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
             const Eigen::Vector3d q = points_map[i].cast<double>();
             return (q.array() >= lo.array()).all() && (q.array() < hi.array()).all();
         },
-        per_point);
+        source_index);
 }
 
 }  // namespace shine

@@ -15,6 +15,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
+#include "shine/core/per_point_values.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/geometry/voxel_groups.hpp"
 #include "shine/io/binary_stream.hpp"
@@ -37,24 +38,6 @@ constexpr std::size_t kTrimEveryScans = 25;
 #endif
 double seconds_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-/// Keeps, in each of `vectors` that holds one element per flag, the elements whose flag is 0, in
-/// order; a vector of another size (a quantity the scan does not have, such as per-point
-/// origins of a scan that was not deskewed) is left as it is. Returns the number of flags set.
-template <class... T>
-std::size_t drop_flagged(const std::vector<std::uint8_t>& drop, std::vector<T>&... vectors) {
-    const std::size_t n = drop.size();
-    const auto compact = [&](auto& values) {
-        if (values.size() != n) return;
-        std::size_t kept = 0;
-        for (std::size_t i = 0; i < n; ++i) {
-            if (!drop[i]) values[kept++] = values[i];
-        }
-        values.resize(kept);
-    };
-    (compact(vectors), ...);
-    return n - static_cast<std::size_t>(std::count(drop.begin(), drop.end(), std::uint8_t{0}));
 }
 
 std::string shape_string(int input_dim, const std::vector<int>& hidden) {
@@ -451,7 +434,8 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
         }
         if (!window_members_.empty()) drop_voxel_runs(window_members_[w], flags);
         dropped += drop_flagged(flags, points, window_votes_[w], window_normals_[w],
-                                window_[w].point_origins_map, scan_objects.object_of);
+                                window_[w].point_origins_map, window_[w].point_intensity,
+                                scan_objects.object_of);
     }
     stats_.dynamic_points_dropped += dropped;
     // The replayed rays are assembled anew from the thinned scans.
@@ -531,7 +515,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     if (current_members) drop_voxel_runs(*current_members, current_dynamic);
     frame.dynamic_dropped =
         drop_flagged(current_dynamic, current.points_map, current.point_origins_map,
-                     current_objects_.object_of, votes);
+                     current.point_intensity, current_objects_.object_of, votes);
     // The points of the normal window's scans that this scan sees through are dropped (with their
     // normals), so that replay and the normals of later scans no longer use them. Older replayed
     // scans had as many scans after them to vote.
@@ -540,6 +524,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
     for (std::size_t w = window_.size() - normal_scans; w < window_.size(); ++w) {
         std::vector<Eigen::Vector3f>& points = window_[w].points_map;
         std::vector<Eigen::Vector3f>& origins = window_[w].point_origins_map;
+        std::vector<float>& intensity = window_[w].point_intensity;
         std::vector<FreeSpaceVotes>& past_votes = window_votes_[w];
         std::vector<Eigen::Vector3f>& normals = window_normals_[w];
         if (points.empty() || past_votes.size() != points.size()) continue;
@@ -551,7 +536,7 @@ std::vector<FreeSpaceVotes> IncrementalMapper::drop_dynamic_points(const Scan& s
             dynamic_flags(with_objects ? &past_objects : nullptr, past_votes, nullptr);
         if (!window_members_.empty()) drop_voxel_runs(window_members_[w], past_dynamic);
         frame.dynamic_forgotten += drop_flagged(past_dynamic, points, past_votes, normals, origins,
-                                                past_objects.object_of);
+                                                intensity, past_objects.object_of);
     }
     stats_.dynamic_points_dropped += frame.dynamic_dropped + frame.dynamic_forgotten;
     voters_.emplace_back(T_sensor_map, std::move(image));

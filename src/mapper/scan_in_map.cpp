@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "shine/core/per_point_values.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/geometry/voxel_groups.hpp"
 
@@ -12,12 +13,16 @@ ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, Neural
                             bool& origin_set, PreprocessStats& stats, bool voxel_groups) {
     PreprocessStats pre;
     ScanInMap result;
-    const bool with_origins = scan.point_origin_sensor.size() == scan.points_sensor.size() &&
-                              !scan.point_origin_sensor.empty();
+    const std::size_t n = scan.points_sensor.size();
+    const bool with_origins = scan.point_origin_sensor.size() == n && n > 0;
+    const bool with_intensity = scan.intensity.size() == n && n > 0;
+    // The input index of every kept point, through preprocessing and the world crop: the
+    // per-point values follow their points with it, in one place.
+    const bool follow = with_origins || with_intensity;
     std::vector<std::uint32_t> source_index;
     const std::vector<Eigen::Vector3f> points_sensor = preprocess_scan(
         scan.points_sensor, config.preprocess, scan.source, &pre,
-        voxel_groups ? &result.voxel_begin : nullptr, with_origins ? &source_index : nullptr);
+        voxel_groups ? &result.voxel_begin : nullptr, follow ? &source_index : nullptr);
     if (!origin_set) {
         sdf.origin_world_m =
             choose_map_origin_world_m(config.origin_world_m, scan.T_world_sensor.translation());
@@ -26,16 +31,14 @@ ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, Neural
     const Eigen::Isometry3d T_map_sensor = map_from_sensor(scan.T_world_sensor, sdf.origin_world_m);
     result.origin_map = T_map_sensor.translation().cast<float>();
     result.points_map = points_in_map_frame(points_sensor, T_map_sensor);
-    if (with_origins) {
-        std::vector<Eigen::Vector3f> origins_sensor(source_index.size());
-        for (std::size_t k = 0; k < source_index.size(); ++k) {
-            origins_sensor[k] = scan.point_origin_sensor[source_index[k]];
-        }
-        result.point_origins_map = points_in_map_frame(origins_sensor, T_map_sensor);
-    }
     const std::size_t cropped =
         crop_to_world_box(result.points_map, config.crop_world_m, sdf.origin_world_m,
-                          &result.voxel_begin, with_origins ? &result.point_origins_map : nullptr);
+                          &result.voxel_begin, follow ? &source_index : nullptr);
+    if (with_origins) {
+        result.point_origins_map = points_in_map_frame(
+            gather_per_point(scan.point_origin_sensor, n, source_index), T_map_sensor);
+    }
+    result.point_intensity = gather_per_point(scan.intensity, n, source_index);
     pre.dropped_box += cropped;
     pre.output -= cropped;
     stats += pre;
@@ -46,13 +49,11 @@ ScanInMap voxel_leads(const ScanInMap& grouped) {
     if (grouped.voxel_begin.empty()) return grouped;
     ScanInMap leads;
     leads.origin_map = grouped.origin_map;
-    const bool with_origins = grouped.point_origins_map.size() == grouped.points_map.size();
-    leads.points_map.reserve(grouped.voxel_begin.size());
-    if (with_origins) leads.point_origins_map.reserve(grouped.voxel_begin.size());
-    for (const std::uint32_t first : grouped.voxel_begin) {
-        leads.points_map.push_back(grouped.points_map[first]);
-        if (with_origins) leads.point_origins_map.push_back(grouped.point_origins_map[first]);
-    }
+    const std::vector<std::uint32_t>& firsts = grouped.voxel_begin;
+    const std::size_t n = grouped.points_map.size();
+    leads.points_map = gather_per_point(grouped.points_map, n, firsts);
+    leads.point_origins_map = gather_per_point(grouped.point_origins_map, n, firsts);
+    leads.point_intensity = gather_per_point(grouped.point_intensity, n, firsts);
     return leads;
 }
 
@@ -65,7 +66,8 @@ std::size_t drop_voxel_runs(ScanInMap& grouped, const std::vector<std::uint8_t>&
     }
     return filter_voxel_grouped(
         grouped.points_map, grouped.voxel_begin,
-        [&](std::size_t, std::size_t run) { return drop[run] == 0; }, &grouped.point_origins_map);
+        [&](std::size_t, std::size_t run) { return drop[run] == 0; }, &grouped.point_origins_map,
+        &grouped.point_intensity);
 }
 
 }  // namespace shine

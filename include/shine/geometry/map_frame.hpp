@@ -31,11 +31,12 @@ Eigen::Vector3d choose_map_origin_world_m(const std::vector<double>& configured,
 /// Removes the map-frame points outside the world box `box_world_m` ([xmin, ymin, zmin, xmax,
 /// ymax, zmax]; empty: keeps all) and returns how many were removed. With `voxel_begin`, the
 /// points are grouped by voxel (voxel_groups.hpp) and the groups are rewritten for what is kept.
-/// `per_point` (one value per point, or empty) keeps the values of the kept points.
+/// `source_index` (each point's index in the scan it came from, or empty) keeps those of the
+/// kept points, with which the scan's other per-point values follow (per_point_values.hpp).
 std::size_t crop_to_world_box(std::vector<Eigen::Vector3f>& points_map,
                               const std::vector<double>& box_world_m,
                               const Eigen::Vector3d& origin_world_m,
                               std::vector<std::uint32_t>* voxel_begin = nullptr,
-                              std::vector<Eigen::Vector3f>* per_point = nullptr);
+                              std::vector<std::uint32_t>* source_index = nullptr);
 
 }  // namespace shine

@@ -31,13 +31,17 @@ void for_each_point_run(std::size_t count, const std::vector<std::uint32_t>& vox
 /// Keeps the points for which keep(i, run) is true, in order (`run` is point i's run: its index
 /// in `voxel_begin`, or i when ungrouped), and rewrites `voxel_begin` for what is kept: a run
 /// keeps its place, loses its removed points, and disappears when none is left. An empty
-/// `voxel_begin` stays empty. `per_point` (null, empty, or one value per point) keeps the values
-/// of the kept points. Returns the number of points removed.
-template <class Keep>
+/// `voxel_begin` stays empty. Each of `per_point` (null, empty, or one value per point: ray
+/// origins, intensities, ...) keeps the values of the kept points. Returns the number of points
+/// removed.
+template <class Keep, class... Values>
 std::size_t filter_voxel_grouped(std::vector<Eigen::Vector3f>& points,
                                  std::vector<std::uint32_t>& voxel_begin, const Keep& keep,
-                                 std::vector<Eigen::Vector3f>* per_point = nullptr) {
-    const bool with_values = per_point != nullptr && per_point->size() == points.size();
+                                 std::vector<Values>*... per_point) {
+    [[maybe_unused]] const auto with_values = [&](const auto* values) {
+        return values != nullptr && values->size() == points.size();
+    };
+    [[maybe_unused]] const bool with[sizeof...(Values) + 1] = {with_values(per_point)..., false};
     const bool grouped = !voxel_begin.empty();
     std::vector<std::uint32_t> begins;
     if (grouped) begins.reserve(voxel_begin.size());
@@ -50,12 +54,14 @@ std::size_t filter_voxel_grouped(std::vector<Eigen::Vector3f>& points,
             begins.push_back(static_cast<std::uint32_t>(kept));
             last_opened = run;
         }
-        if (with_values) (*per_point)[kept] = (*per_point)[i];
+        [[maybe_unused]] std::size_t v = 0;
+        ((with[v++] ? void((*per_point)[kept] = (*per_point)[i]) : void()), ...);
         points[kept++] = points[i];
     });
     const std::size_t removed = points.size() - kept;
+    [[maybe_unused]] std::size_t v = 0;
+    ((with[v++] ? per_point->resize(kept) : void()), ...);
     points.resize(kept);
-    if (with_values) per_point->resize(kept);
     if (grouped) voxel_begin = std::move(begins);
     return removed;
 }

@@ -23,6 +23,10 @@ struct ScanInMap {
     /// Where the sensor was when it measured each point (a deskewed scan,
     /// Scan::point_origin_sensor), in the map frame; empty: origin_map for every point.
     std::vector<Eigen::Vector3f> point_origins_map;
+    /// The intensity of each point (Scan::intensity, as the sensor gives it), in step with
+    /// points_map; empty when the scan has none. Nothing trains on it yet: it is kept for fusing
+    /// reflectance onto the surface.
+    std::vector<float> point_intensity;
 };
 
 /// Preprocesses `scan` with config.preprocess (DataError naming scan.source for invalid points,
@@ -34,13 +38,13 @@ ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, Neural
                             bool& origin_set, PreprocessStats& stats, bool voxel_groups = false);
 
 /// The scan as thinning keeps it, from a scan grouped by voxel: the first point of each voxel's
-/// run (with its origin), which is the point preprocess_scan() keeps when it thins. A scan
-/// without voxel_begin is returned as it is.
+/// run (with its origin and intensity), which is the point preprocess_scan() keeps when it thins. A
+/// scan without voxel_begin is returned as it is.
 ScanInMap voxel_leads(const ScanInMap& grouped);
 
 /// Drops the voxel runs `grouped` whose flag is nonzero (one flag per run: per point when not
-/// grouped), with their points and origins; returns the number of points dropped. Throws
-/// std::invalid_argument for a flag count other than the number of runs.
+/// grouped), with their points, origins and intensities; returns the number of points dropped.
+/// Throws std::invalid_argument for a flag count other than the number of runs.
 std::size_t drop_voxel_runs(ScanInMap& grouped, const std::vector<std::uint8_t>& drop);
 
 }  // namespace shine
