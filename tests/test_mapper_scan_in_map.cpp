@@ -5,7 +5,9 @@
 #include <cmath>
 #include <random>
 #include <stdexcept>
+#include <string>
 
+#include "shine/core/error.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
@@ -149,6 +151,15 @@ TEST(ScanInMap, EachKeptPointKeepsItsIntensityThroughThinningCropAndRunDrops) {
     drop_voxel_runs(grouped, drop);
     expect_own_intensity(grouped, "grouped after dropping every second run");
     expect_own_intensity(voxel_leads(grouped), "leads after dropping");
+    scan.intensity.resize(10);  // not one per point: an error naming the scan
+    try {
+        scan_in_map_frame(scan, config, sdf, origin_set, stats);
+        ADD_FAILURE() << "expected DataError";
+    } catch (const DataError& e) {
+        EXPECT_NE(std::string(e.what()).find("'random': 20000 points but 10 intensities"),
+                  std::string::npos)
+            << e.what();
+    }
     scan.intensity.clear();
     EXPECT_TRUE(scan_in_map_frame(scan, config, sdf, origin_set, stats).point_intensity.empty());
 }

@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "shine/core/error.hpp"
 #include "shine/core/per_point_values.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/geometry/voxel_groups.hpp"
@@ -15,7 +16,12 @@ ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, Neural
     ScanInMap result;
     const std::size_t n = scan.points_sensor.size();
     const bool with_origins = scan.point_origin_sensor.size() == n && n > 0;
-    const bool with_intensity = scan.intensity.size() == n && n > 0;
+    if (!scan.intensity.empty() && scan.intensity.size() != n) {
+        throw DataError("scan '" + scan.source.string() + "': " + std::to_string(n) +
+                        " points but " + std::to_string(scan.intensity.size()) +
+                        " intensities (Scan::intensity must be one per point, or empty)");
+    }
+    const bool with_intensity = !scan.intensity.empty();
     // The input index of every kept point, through preprocessing and the world crop: the
     // per-point values follow their points with it, in one place.
     const bool follow = with_origins || with_intensity;

@@ -30,10 +30,11 @@ struct ScanInMap {
 };
 
 /// Preprocesses `scan` with config.preprocess (DataError naming scan.source for invalid points,
-/// per its policy) and adds its counts to `stats` (the world crop counts as dropped_box). The
-/// first call (origin_set false) sets sdf.origin_world_m and origin_set. With `voxel_groups`
-/// (a batch mapper) and preprocess.voxel_points = all, every point is kept, grouped by voxel;
-/// otherwise the scan is thinned as preprocess.voxel_downsample_m says.
+/// per its policy, or an intensity count other than the points') and adds its counts to `stats`
+/// (the world crop counts as dropped_box). The first call (origin_set false) sets
+/// sdf.origin_world_m and origin_set. With `voxel_groups` (a batch mapper) and
+/// preprocess.voxel_points = all, every point is kept, grouped by voxel; otherwise the scan is
+/// thinned as preprocess.voxel_downsample_m says.
 ScanInMap scan_in_map_frame(const Scan& scan, const MapperConfig& config, NeuralSdf& sdf,
                             bool& origin_set, PreprocessStats& stats, bool voxel_groups = false);
 
