@@ -1,8 +1,9 @@
 // `shine convert RECORDING -o DIR`: a recording's PointCloud2 messages -> the KITTI odometry layout
-// (velodyne/NNNNNN.bin, times.txt, and poses.txt when a pose file is given), so that other tools
-// can read the scans too (any sequence `shine map` reads is accepted; it also reports the read
-// speed, opening included, in scans per second). The output appears only when complete: it is
-// written into DIR.partial and renamed at the end, and removed on any error.
+// (velodyne/NNNNNN.bin with the intensity in the 4th column, times.txt, and poses.txt when a pose
+// file is given), so that other tools can read the scans too (any sequence `shine map` reads is
+// accepted; it also reports the read speed, opening included, in scans per second). The output
+// appears only when complete: it is written into DIR.partial and renamed at the end, and removed
+// on any error.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +14,7 @@
 #include "command_registry.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
+#include "shine/core/per_point_values.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/point_cloud2.hpp"
@@ -32,15 +34,29 @@ struct ConvertOptions {
     bool quiet = false;
 };
 
-/// One converted scan: finite points only (KITTI readers elsewhere do not expect NaN).
-std::vector<Eigen::Vector3f> finite_points(const std::vector<Eigen::Vector3f>& points) {
-    std::vector<Eigen::Vector3f> out;
-    out.reserve(points.size());
-    for (const Eigen::Vector3f& p : points) {
-        if (p.allFinite()) out.push_back(p);
-    }
-    return out;
+/// One converted scan: finite points only (KITTI readers elsewhere do not expect NaN), each
+/// with its intensity when the scan has one (NaN intensities of finite points are kept).
+void write_finite_scan(const fs::path& path, std::vector<Eigen::Vector3f> points,
+                       std::vector<float> intensity) {
+    std::vector<std::uint8_t> non_finite(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) non_finite[i] = !points[i].allFinite();
+    drop_flagged(non_finite, points, intensity);
+    write_kitti_bin(path, points, intensity);
 }
+
+/// Which fields the intensities came from, for the summary line.
+struct IntensityTally {
+    std::size_t scans = 0;  ///< scans with an intensity
+    std::string fields;     ///< the distinct fields, space-separated
+
+    void add(const std::string& field) {
+        if (field.empty()) return;
+        ++scans;
+        const std::string quoted = "'" + field + "'";
+        if (fields.find(quoted) == std::string::npos)
+            fields += (fields.empty() ? "" : " ") + quoted;
+    }
+};
 
 std::string scan_name(std::size_t i) {
     char name[32];
@@ -51,7 +67,8 @@ std::string scan_name(std::size_t i) {
 /// Writes the scans and times into `dir`; returns the number of scans. `read_seconds` gets the
 /// time spent opening the input and reading and decoding its scans (not writing them).
 std::size_t write_scans(const ConvertOptions& opt, const fs::path& dir, std::string& times,
-                        std::vector<Eigen::Isometry3d>& poses, double& read_seconds) {
+                        std::vector<Eigen::Isometry3d>& poses, double& read_seconds,
+                        IntensityTally& intensity) {
     const fs::path velodyne = dir / "velodyne";
     fs::create_directories(velodyne);
     char line[64];
@@ -69,9 +86,11 @@ std::size_t write_scans(const ConvertOptions& opt, const fs::path& dir, std::str
         Progress progress("convert", sequence.size());
         for (std::size_t i = 0; i < sequence.size(); ++i) {
             t0 = std::chrono::steady_clock::now();
-            const Scan scan = sequence.load(i);
+            Scan scan = sequence.load(i);
             read_seconds += seconds_since(t0);
-            write_kitti_bin(velodyne / scan_name(i), finite_points(scan.points_sensor));
+            intensity.add(scan.intensity_field);
+            write_finite_scan(velodyne / scan_name(i), std::move(scan.points_sensor),
+                              std::move(scan.intensity));
             std::snprintf(line, sizeof(line), "%.9f\n", scan.stamp_s);
             times += line;
             poses.push_back(scan.T_world_sensor);
@@ -103,10 +122,12 @@ std::size_t write_scans(const ConvertOptions& opt, const fs::path& dir, std::str
         const std::string where = reader->kind() + " '" + opt.recording + "', topic " + topic.name +
                                   ", message " + std::to_string(m);
         t0 = std::chrono::steady_clock::now();
-        const PointCloud2Scan cloud = decode_point_cloud2(
+        PointCloud2Scan cloud = decode_point_cloud2(
             reader->read(messages[static_cast<std::size_t>(m)]), topic.encoding, where);
         read_seconds += seconds_since(t0);
-        write_kitti_bin(velodyne / scan_name(count), finite_points(cloud.points_sensor));
+        intensity.add(cloud.intensity_field);
+        write_finite_scan(velodyne / scan_name(count), std::move(cloud.points_sensor),
+                          std::move(cloud.intensity));
         std::snprintf(line, sizeof(line), "%.9f\n", cloud.stamp_s);
         times += line;
         progress.update(++count);
@@ -130,8 +151,9 @@ int run_convert(const ConvertOptions& opt) {
     std::vector<Eigen::Isometry3d> poses;
     std::size_t count = 0;
     double read_seconds = 0.0;
+    IntensityTally intensity;
     try {
-        count = write_scans(opt, partial, times, poses, read_seconds);
+        count = write_scans(opt, partial, times, poses, read_seconds, intensity);
         // Scan files carry no stamps: times.txt only for recordings.
         if (recording)
             write_stream_atomically(partial / "times.txt", [&](std::ostream& stream) {
@@ -149,6 +171,12 @@ int run_convert(const ConvertOptions& opt) {
     std::printf("wrote %zu scans to %s (velodyne/%s%s)\n", count, out.c_str(),
                 recording ? ", times.txt" : "",
                 poses.empty() ? "; no poses.txt: give --poses FILE to write one" : ", poses.txt");
+    if (intensity.scans > 0) {
+        std::printf("intensity of %zu of %zu scans (field %s) in the 4th column, as stored\n",
+                    intensity.scans, count, intensity.fields.c_str());
+    } else {
+        std::printf("no intensity in the input: the 4th column is 0\n");
+    }
     return 0;
 }
 

@@ -7,8 +7,10 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <utility>
 
 #include "cli_test_support.hpp"
+#include "shine/io/kitti.hpp"
 
 namespace shine::cli_test {
 namespace {
@@ -36,6 +38,17 @@ class CliRecordings : public ::testing::Test {
             setup_error_ = sim.output;
             return;
         }
+        // The simulator writes no intensity (0): give every point a whole number 0..255, which
+        // the recordings' float32, uint16 and uint8 intensity fields all hold exactly.
+        for (int f = 0; f < kFrames; ++f) {
+            const fs::path bin = root_ / "street" / "velodyne" / scan_file(f);
+            const std::vector<Eigen::Vector3f> points = read_kitti_bin(bin);
+            std::vector<float> intensity(points.size());
+            for (std::size_t i = 0; i < points.size(); ++i) {
+                intensity[i] = static_cast<float>((7 * f + 13 * i) % 256);
+            }
+            write_kitti_bin(bin, points, intensity);
+        }
         const std::string command = "/usr/bin/python3 '" + kWriter.string() + "' '" +
                                     (root_ / "street").string() + "' '" + (root_ / "rec").string() +
                                     "' > '" + (root_ / "writer.log").string() + "' 2>&1";
@@ -59,6 +72,11 @@ class CliRecordings : public ::testing::Test {
     }
 
     static fs::path rec(const std::string& name) { return root_ / "rec" / name; }
+    static std::string scan_file(int f) {
+        char name[32];
+        std::snprintf(name, sizeof(name), "%06d.bin", f);
+        return name;
+    }
     static std::string poses() { return "--poses '" + rec("poses.tum").string() + "'"; }
 
     /// `shine map DATA` with few iterations; returns the mesh's bytes.
@@ -100,11 +118,13 @@ TEST_F(CliRecordings, ConvertWritesTheKittiLayoutBack) {
     const CliResult r = run_shine(
         "convert '" + rec("street.bag").string() + "' -o '" + out.string() + "' " + poses(), dir_);
     ASSERT_EQ(r.exit_code, 0) << r.output;
+    // Points and intensities (the 4th column) byte for byte.
     for (int f = 0; f < kFrames; ++f) {
-        char name[32];
-        std::snprintf(name, sizeof(name), "velodyne/%06d.bin", f);
+        const fs::path name = fs::path("velodyne") / scan_file(f);
         EXPECT_TRUE(read_text(out / name) == read_text(root_ / "street" / name)) << name;
     }
+    EXPECT_NE(r.output.find("intensity of 6 of 6 scans (field 'intensity')"), std::string::npos)
+        << r.output;
     const std::string times = read_text(out / "times.txt");
     EXPECT_EQ(times.substr(0, 21), "1700000000.000000000\n");
     EXPECT_TRUE(fs::exists(out / "poses.txt"));
@@ -116,6 +136,38 @@ TEST_F(CliRecordings, ConvertWritesTheKittiLayoutBack) {
     EXPECT_NE(r2.output.find("--poses FILE"), std::string::npos) << r2.output;
     EXPECT_EQ(read_text(bare / "times.txt"), times);
     EXPECT_FALSE(fs::exists(bare / "poses.txt"));
+}
+
+TEST_F(CliRecordings, ConvertKeepsIntensityFieldsOfEveryTypeInTheFourthColumn) {
+    // uint16 `reflectivity` of organised clouds padded with a NaN point (dropped with its
+    // intensity), and uint8 `i`: the KITTI scans come back byte for byte.
+    for (const auto& [recording, field] :
+         {std::pair<std::string, std::string>{"street_db3", "reflectivity"},
+          {"street.mcap", "i"}}) {
+        SCOPED_TRACE(recording);
+        const fs::path out = dir_ / ("from_" + field);
+        const CliResult r =
+            run_shine("convert '" + rec(recording).string() + "' -o '" + out.string() + "'", dir_);
+        ASSERT_EQ(r.exit_code, 0) << r.output;
+        for (int f = 0; f < kFrames; ++f) {
+            const fs::path name = fs::path("velodyne") / scan_file(f);
+            EXPECT_TRUE(read_text(out / name) == read_text(root_ / "street" / name)) << name;
+        }
+        EXPECT_NE(r.output.find("(field '" + field + "')"), std::string::npos) << r.output;
+    }
+    // A sequence without intensity (the simulator's zeros) says so and writes zeros.
+    const fs::path plain = dir_ / "plain";
+    fs::create_directories(plain / "velodyne");
+    const std::vector<Eigen::Vector3f> points = {{1.0f, 2.0f, 3.0f}, {4.0f, 5.0f, 6.0f}};
+    write_kitti_bin(plain / "velodyne" / scan_file(0), points);
+    write_kitti_poses(plain / "poses.txt", {Eigen::Isometry3d::Identity()});
+    const fs::path out = dir_ / "plain_out";
+    const CliResult r =
+        run_shine("convert '" + plain.string() + "' -o '" + out.string() + "'", dir_);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("no intensity in the input"), std::string::npos) << r.output;
+    EXPECT_TRUE(read_text(out / "velodyne" / scan_file(0)) ==
+                read_text(plain / "velodyne" / scan_file(0)));
 }
 
 TEST_F(CliRecordings, BrokenRecordingsFailNamingTheFileWithoutOutput) {
