@@ -2,6 +2,7 @@
 // per-point times.
 #include "fuzz_common.hpp"
 #include "shine/io/ply.hpp"
+#include "shine/io/point_intensity.hpp"
 #include "shine/io/preprocess.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -31,6 +32,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         // Scans with per-point times: one time per point, or none.
         const shine::TimedPoints scan = shine::parse_ply_scan(bytes, shine_fuzz::kSource);
         if (!scan.point_time_s.empty() && scan.point_time_s.size() != scan.points_sensor.size()) {
+            std::abort();
+        }
+        // Intensities likewise, and an empty list is the only "none".
+        if (!scan.intensity.empty() && (scan.intensity.size() != scan.points_sensor.size() ||
+                                        !shine::intensity_measured(scan.intensity))) {
             std::abort();
         }
     });

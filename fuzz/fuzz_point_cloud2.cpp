@@ -2,6 +2,7 @@
 // (even: CDR, odd: ROS 1); the rest is the message.
 #include "fuzz_common.hpp"
 #include "shine/io/point_cloud2.hpp"
+#include "shine/io/point_intensity.hpp"
 #include "shine/io/preprocess.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -15,6 +16,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const shine::PointCloud2Scan scan = shine::decode_point_cloud2(message, encoding, where);
         if (!scan.point_time_s.empty() && scan.point_time_s.size() != scan.points_sensor.size()) {
             std::abort();  // one time per point, always
+        }
+        if (!scan.intensity.empty() && (scan.intensity.size() != scan.points_sensor.size() ||
+                                        !shine::intensity_measured(scan.intensity))) {
+            std::abort();  // one intensity per point, or none
         }
         shine::preprocess_scan(scan.points_sensor, shine::PreprocessConfig{}, shine_fuzz::kSource);
     });
