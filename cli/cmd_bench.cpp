@@ -201,7 +201,7 @@ int run_bench(const BenchOptions& opt) {
     return 0;
 }
 
-const RegisterCommand kRegister(70, [](CLI::App& app, Action& action) {
+const RegisterCommand kRegisterBench(70, [](CLI::App& app, Action& action) {
     auto opt = std::make_shared<BenchOptions>();
     CLI::App* cmd = app.add_subcommand(
         "bench",

@@ -180,7 +180,7 @@ int run_convert(const ConvertOptions& opt) {
     return 0;
 }
 
-const RegisterCommand kRegister(15, [](CLI::App& app, Action& action) {
+const RegisterCommand kRegisterConvert(15, [](CLI::App& app, Action& action) {
     auto opt = std::make_shared<ConvertOptions>();
     CLI::App* cmd = app.add_subcommand(
         "convert",

@@ -85,7 +85,7 @@ int run_forgetting(const ForgettingOptions& opt) {
     return 0;
 }
 
-const RegisterCommand kRegister(75, [](CLI::App& app, Action& action) {
+const RegisterCommand kRegisterForgetting(75, [](CLI::App& app, Action& action) {
     auto opt = std::make_shared<ForgettingOptions>();
     CLI::App* cmd = app.add_subcommand(
         "forgetting",

@@ -125,7 +125,7 @@ int run_merge(const MergeOptions& opt) {
     return 0;
 }
 
-const RegisterCommand kRegister(65, [](CLI::App& app, Action& action) {
+const RegisterCommand kRegisterMerge(65, [](CLI::App& app, Action& action) {
     auto opt = std::make_shared<MergeOptions>();
     CLI::App* cmd = app.add_subcommand(
         "merge",

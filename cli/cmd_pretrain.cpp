@@ -107,7 +107,7 @@ int run_pretrain(const PretrainOptions& opt) {
     return 0;
 }
 
-const RegisterCommand kRegister(25, [](CLI::App& app, Action& action) {
+const RegisterCommand kRegisterPretrain(25, [](CLI::App& app, Action& action) {
     auto opt = std::make_shared<PretrainOptions>();
     CLI::App* cmd = app.add_subcommand(
         "pretrain",

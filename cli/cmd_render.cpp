@@ -265,7 +265,7 @@ int run_render(const RenderOptions& opt) {
     return 0;
 }
 
-const RegisterCommand kRegister(55, [](CLI::App& app, Action& action) {
+const RegisterCommand kRegisterRender(55, [](CLI::App& app, Action& action) {
     auto opt = std::make_shared<RenderOptions>();
     CLI::App* cmd = app.add_subcommand(
         "render",

@@ -187,7 +187,7 @@ int run_tsdf(const TsdfOptions& opt) {
     return 0;
 }
 
-const RegisterCommand kRegister(60, [](CLI::App& app, Action& action) {
+const RegisterCommand kRegisterTsdf(60, [](CLI::App& app, Action& action) {
     auto opt = std::make_shared<TsdfOptions>();
     auto& c = opt->config;
     CLI::App* cmd = app.add_subcommand(

@@ -10,6 +10,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
@@ -23,10 +24,6 @@ namespace shine {
 namespace fs = std::filesystem;
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 std::string trim(const std::string& s) {
     const auto begin = s.find_first_not_of(" \t");

@@ -12,6 +12,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/raster.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/eval/mesh_sampling.hpp"
 #include "shine/eval/metrics_report.hpp"
 #include "shine/eval/nearest_distance.hpp"
@@ -25,10 +26,6 @@ namespace fs = std::filesystem;
 
 namespace forgetting_internal {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 /// Colour scale of the figure: distance to the observed reference, 0 .. kErrorScaleM.
 constexpr double kErrorScaleM = 0.10;

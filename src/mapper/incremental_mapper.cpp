@@ -16,6 +16,7 @@
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
 #include "shine/core/per_point_values.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/geometry/voxel_groups.hpp"
 #include "shine/io/binary_stream.hpp"
@@ -36,10 +37,6 @@ namespace {
 /// Scans between two hand-backs of the heap's free pages to the system (glibc's malloc_trim).
 constexpr std::size_t kTrimEveryScans = 25;
 #endif
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 std::string shape_string(int input_dim, const std::vector<int>& hidden) {
     std::string s = std::to_string(input_dim);
     for (int h : hidden) s += " -> " + std::to_string(h);

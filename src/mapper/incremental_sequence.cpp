@@ -15,6 +15,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/tum.hpp"
@@ -26,10 +27,6 @@ namespace shine {
 namespace fs = std::filesystem;
 
 namespace {
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 std::string frame_name(std::size_t frame) {
     char name[32];
     std::snprintf(name, sizeof(name), "mesh_%06zu.ply", frame);

@@ -8,6 +8,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/core/random.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/io/binary_stream.hpp"
 #include "shine/mapper/partition_records.hpp"
 #include "shine/model/batch_gradient.hpp"
@@ -18,9 +19,6 @@ namespace {
 constexpr int kMaxSamplesPerRay = 64;
 constexpr std::uint64_t kImportanceSalt = 0x3c6ef372fe94f82bull;  ///< importance-pass streams
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 }  // namespace
 
 /// Per-chunk results: the chunk's samples, their batched gradients, the records of each row

@@ -11,6 +11,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/sim/block_ray_caster.hpp"
@@ -28,10 +29,6 @@ using sequence_internal::json_number;
 
 /// Independent random streams (the city and the drive use streams of their own).
 enum Stream : std::uint64_t { kNoise = 0x200, kMovers = 0x300 };
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 std::string line_name(const StreetSegment& s) {
     return (s.along_y ? "rung " : "row ") + std::to_string(s.line);

@@ -3,15 +3,10 @@
 #include <chrono>
 #include <cmath>
 
+#include "shine/core/stopwatch.hpp"
 #include "shine/geometry/map_frame.hpp"
 
 namespace shine {
-namespace {
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-}  // namespace
-
 void TsdfMapperConfig::validate() const {
     tsdf.validate();
     mesh.validate();
