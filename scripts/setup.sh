@@ -46,10 +46,9 @@ fi
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DSHINE_BUILD_BENCHMARKS=ON
 if [ "$only_example" -eq 1 ]; then
-    targets=(shine)
-    # The Python module's target exists when pybind11 was found (SHINE_BUILD_PYTHON).
-    grep -q '^SHINE_BUILD_PYTHON:BOOL=ON' build/CMakeCache.txt && targets+=(_shinevdb)
-    cmake --build build -j"$(nproc)" --target "${targets[@]}"
+    # The `example` target: the shine CLI and, when pybind11 was found (SHINE_BUILD_PYTHON), the
+    # Python module, built together so that the module compiles while the CLI does.
+    cmake --build build -j"$(nproc)" --target example
 else
     cmake --build build -j"$(nproc)"
 fi
