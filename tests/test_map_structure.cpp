@@ -222,3 +222,56 @@ TEST(FeatureOctreeClone, IsADeepCopyThatKeepsItsRowsWhileTheOriginalGrows) {
     EXPECT_TRUE(octree.find_cell(0, Eigen::Vector3f(6.0f, 6.0f, 0.0f), corners));
     EXPECT_TRUE(copy.find_cell(0, Eigen::Vector3f(1.0f, 1.0f, 0.0f), corners));
 }
+
+TEST(FeatureOctreeCopy, SharedCornersTakeTheSourcesFeaturesTheOthersKeepTheirs) {
+    // Two maps of overlapping planes, allocated in different orders (so the same corner has
+    // different rows in each): every corner of `target` that `source` has gets its feature.
+    for (const FeaturePrecision precision :
+         {FeaturePrecision::kFloat32, FeaturePrecision::kFloat16}) {
+        FeatureOctreeConfig config;
+        config.leaf_size_m = 0.2;
+        config.feature_precision = precision;
+        FeatureOctree source(config);
+        source.allocate_cells(plane_points(3.0f, 0.0f, 2.0f, 0.1f));
+        source.allocate_cells(plane_points(0.0f, 0.0f, 4.0f, 0.1f));
+        config.seed = 7;  // other initial features, so that a copy is seen
+        FeatureOctree target(config);
+        target.allocate_cells(plane_points(2.0f, 0.0f, 4.0f, 0.1f));
+        const auto source_rows = all_rows(source);
+        const auto target_rows = all_rows(target);
+        const auto row_of = [&](const FeatureOctree& octree, std::int32_t row) {
+            std::vector<float> values(static_cast<std::size_t>(config.feature_dim));
+            octree.features().get_row(static_cast<std::size_t>(row), values.data());
+            return values;
+        };
+        std::map<CornerKey, std::vector<float>> before;
+        for (const auto& [key, row] : target_rows) before[key] = row_of(target, row);
+
+        const std::size_t copied = target.copy_shared_features(source);
+        std::size_t shared = 0, kept = 0;
+        for (const auto& [key, row] : target_rows) {
+            const auto in_source = source_rows.find(key);
+            if (in_source != source_rows.end()) {
+                ++shared;
+                EXPECT_EQ(row_of(target, row), row_of(source, in_source->second));
+            } else {
+                ++kept;
+                EXPECT_EQ(row_of(target, row), before[key]);
+            }
+        }
+        // all_rows() lists the corners of complete cells, which are all the corners here.
+        EXPECT_EQ(copied, shared);
+        EXPECT_GT(shared, 100u);
+        EXPECT_GT(kept, 100u) << "the target reaches past the source (x from 4 to 6 m)";
+        std::size_t changed = 0;
+        for (const auto& [key, row] : target_rows) changed += row_of(target, row) != before[key];
+        EXPECT_GT(changed, 0u) << "the two maps' initial features differ";
+    }
+    FeatureOctreeConfig coarse;
+    coarse.leaf_size_m = 0.4;
+    FeatureOctree other(coarse);
+    FeatureOctreeConfig fine;
+    fine.leaf_size_m = 0.2;
+    FeatureOctree target(fine);
+    EXPECT_THROW(target.copy_shared_features(other), ConfigError);
+}

@@ -504,6 +504,41 @@ std::int32_t FeatureOctree::corner_row(int level, const Eigen::Vector3i& corner)
     return index_row(accessor, index, to_coord(corner) + index.shift);
 }
 
+std::size_t FeatureOctree::copy_shared_features(const FeatureOctree& source) {
+    if (source.num_levels() != num_levels() || source.feature_dim() != feature_dim() ||
+        source.feature_precision() != feature_precision() ||
+        source.config().leaf_size_m != config().leaf_size_m) {
+        throw ConfigError(
+            "copying features between octrees needs the same levels, leaf size, feature length "
+            "and precision");
+    }
+    const std::size_t dim = static_cast<std::size_t>(feature_dim());
+    const bool half = feature_precision() == FeaturePrecision::kFloat16;
+    std::size_t copied = 0;
+    for (int l = 0; l < num_levels(); ++l) {
+        const LevelIndex& to = impl_->levels[static_cast<std::size_t>(l)];
+        const LevelIndex& from = source.impl_->levels[static_cast<std::size_t>(l)];
+        if (!to.grid || !from.grid) continue;
+        IndexAccessor to_accessor(to.grid->tree());
+        IndexAccessor from_accessor(from.grid->tree());
+        for (auto it = to.grid->tree().cbeginValueOn(); it; ++it) {
+            const openvdb::Coord corner = it.getCoord() - to.shift;
+            const std::int32_t from_row = index_row(from_accessor, from, corner + from.shift);
+            if (from_row < 0) continue;
+            const std::int32_t to_row = index_row(to_accessor, to, it.getCoord());
+            if (half) {
+                std::copy_n(source.features_.halves() + std::size_t(from_row) * dim, dim,
+                            features_.halves() + std::size_t(to_row) * dim);
+            } else {
+                std::copy_n(source.features_.floats() + std::size_t(from_row) * dim, dim,
+                            features_.floats() + std::size_t(to_row) * dim);
+            }
+            ++copied;
+        }
+    }
+    return copied;
+}
+
 std::vector<Eigen::Vector3i> FeatureOctree::cells(int level) const {
     std::vector<Eigen::Vector3i> cells;
     const LevelIndex& index = impl_->levels.at(level);

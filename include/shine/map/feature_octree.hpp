@@ -109,6 +109,12 @@ class FeatureOctree {
     std::size_t num_corners(int level) const;
     /// Row of the corner with integer coordinates `corner` at `level`, or -1 if not allocated.
     std::int32_t corner_row(int level, const Eigen::Vector3i& corner) const;
+    /// Copies into this octree the feature of every corner that `source` has too (same level, same
+    /// integer coordinates); corners only this octree has keep theirs. A warm start: a map of the
+    /// same scans at slightly different poses starts from what `source` learnt. Throws ConfigError
+    /// unless both have the same levels, leaf size, feature length and precision. Returns the
+    /// number of corners copied.
+    std::size_t copy_shared_features(const FeatureOctree& source);
 
     /// The feature table, one row per corner. Resizing it is the octree's job.
     FeatureTable& features() { return features_; }
