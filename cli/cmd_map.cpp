@@ -718,6 +718,12 @@ int run_map(const MapOptions& given_options) {
         refine_json["max_moved_m"] = moved_m;
         refine_json["poses"] = (out / "poses_refined.txt").string();
         refine_json["seconds"] = batch_map->refine_seconds;
+        refine_json["warm_start"] = {
+            {"used", batch_map->warm_start_corners > 0},
+            {"corners", batch_map->warm_start_corners},
+            {"from_step", batch_map->warm_start_step},
+            {"shift_after_first_round_m",
+             PoseRefinementConfig::shift_after_first_round_m(batch_map->refinement)}};
         const PoseRefinementRound& last = batch_map->refinement.back();
         std::printf(
             "poses refined with the map in %.1f s: %zu rounds, the last moved %zu scans by %.3f m "

@@ -176,24 +176,30 @@ TEST(Resume, IncrementalRunReplayingEarlierScansContinuesToTheSameMap) {
 // Batch mode polls for a stop after each scan but the last while loading (3 polls for the 4
 // scans), once for each of the first map's 179 steps before the last round of pose refinement
 // (at step 180 = 60 % of 300), then again while loading for the map itself (not when resuming)
-// and after each of its training steps.
+// and after each of its training steps. The map at the refined poses starts from the first map
+// (refine.warm_start: the noise-free street's later rounds move its scans by millimetres), so
+// its steps are 181..300.
 constexpr int kLoadPolls = 3;
 constexpr int kRefinePolls = 179;
+constexpr int kWarmStartStep = 180;
 
 TEST(Resume, BatchRunStoppedDuringTrainingContinuesToTheSameMap) {
     const fs::path reference = reference_run("batch", "--threads 2");
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
-    const int step_100 = kLoadPolls + kRefinePolls + kLoadPolls + 100;
+    const int step_220 = kLoadPolls + kRefinePolls + kLoadPolls + (220 - kWarmStartStep);
     const CliResult stopped =
-        run(map_args(out, "--threads 2 --interrupt-after " + std::to_string(step_100)));
+        run(map_args(out, "--threads 2 --interrupt-after " + std::to_string(step_220)));
     expect_stopped_without_products(stopped, out);
-    EXPECT_NE(stopped.output.find("after optimisation step 100 of 300"), std::string::npos)
+    EXPECT_NE(stopped.output.find("after optimisation step 220 of 300"), std::string::npos)
         << stopped.output;
     const CliResult r = run("map --resume '" + out.string() + "' -q --threads 2");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     expect_same_result(out, reference);
-    EXPECT_EQ(read_json(out / "stats.json").at("iterations"), 300);
+    // The steps this map trained, after the ones it took over from the first map.
+    const nlohmann::json stats = read_json(out / "stats.json");
+    EXPECT_EQ(stats.at("refine").at("warm_start").at("from_step"), kWarmStartStep);
+    EXPECT_EQ(stats.at("iterations"), 300 - kWarmStartStep);
     EXPECT_EQ(read_text(out / "poses_refined.txt"), read_text(reference / "poses_refined.txt"));
 }
 
@@ -223,9 +229,9 @@ TEST(Resume, HalfPrecisionRunStoppedTwiceContinuesToTheSameMap) {
         run(map_args(out, "--threads 2 --half-features --interrupt-after 2")), out);
     const CliResult again =
         run("map --resume '" + out.string() + "' -q --threads 2 --interrupt-after " +
-            std::to_string(kLoadPolls + kRefinePolls + 150));
+            std::to_string(kLoadPolls + kRefinePolls + (250 - kWarmStartStep)));
     expect_stopped_without_products(again, out);
-    EXPECT_NE(again.output.find("after optimisation step 150 of 300"), std::string::npos)
+    EXPECT_NE(again.output.find("after optimisation step 250 of 300"), std::string::npos)
         << again.output;
     const CliResult r = run("map --resume '" + out.string() + "' -q --threads 1");
     ASSERT_EQ(r.exit_code, 0) << r.output;

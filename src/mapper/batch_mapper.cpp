@@ -323,6 +323,21 @@ void BatchMapper::load_state(BinaryReader& in) {
     bce_average_ = bce_average;
 }
 
+std::size_t BatchMapper::warm_start(const NeuralSdf& source, int first_step) {
+    finish_scans();
+    if (trainer_ || iterations_done_ > 0) {
+        throw ConfigError("warm start: training has already begun");
+    }
+    if (source.origin_world_m != sdf_->origin_world_m ||
+        source.decoder.num_params() != sdf_->decoder.num_params()) {
+        throw ConfigError("warm start: the maps differ in origin or decoder shape");
+    }
+    const std::size_t copied = sdf_->octree.copy_shared_features(source.octree);
+    sdf_->decoder = source.decoder;
+    iterations_done_ = std::clamp(first_step, 0, planned_iterations());
+    return copied;
+}
+
 PoseRefinementConfig BatchMapper::refinement() const {
     return config_.refine.at_leaf(config_.octree.leaf_size_m, config_.preprocess.min_range_m,
                                   config_.preprocess.max_range_m);

@@ -89,7 +89,8 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
                                                      const ScanSequence& sequence,
                                                      const std::string& progress_tag,
                                                      const RunControl* control,
-                                                     std::vector<PoseRefinementRound>& rounds) {
+                                                     std::vector<PoseRefinementRound>& rounds,
+                                                     std::unique_ptr<NeuralSdf>* first_map) {
     MapperConfig first = config;
     first.dynamic.enabled = false;
     BatchMapper mapper(first);
@@ -147,6 +148,7 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
         progress.finish(detail);
     }
     rounds = mapper.refinement_rounds();
+    if (first_map) *first_map = std::make_unique<NeuralSdf>(mapper.sdf().clone());
     return poses_world;
 }
 
@@ -161,12 +163,20 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
     SequenceMap result;
     // With pose refinement: the poses refined on a first map, then the map made at them.
     ScanSequence sequence = given_sequence;
-    if (config.refine.rounds > 0 && sequence.size() >= 3) {
+    const PoseRefinementConfig refine = config.refine;
+    std::unique_ptr<NeuralSdf> first_map;  // with refine.warm_start: where the map starts from
+    if (refine.rounds > 0 && sequence.size() >= 3) {
         const auto t0 = std::chrono::steady_clock::now();
         result.refined_poses_world =
-            refine_sequence_poses(config, sequence, progress_tag, control, result.refinement);
+            refine_sequence_poses(config, sequence, progress_tag, control, result.refinement,
+                                  refine.warm_start ? &first_map : nullptr);
         result.refine_seconds = seconds_since(t0);
         sequence = sequence.with_poses(result.refined_poses_world);
+        // The first map is reused only where it was trained at poses close to the refined ones.
+        const PoseRefinementConfig scaled =
+            refine.at_leaf(config.octree.leaf_size_m, config.preprocess.min_range_m,
+                           config.preprocess.max_range_m);
+        if (!scaled.warm_start_fits(result.refinement)) first_map.reset();
     }
     config.refine.rounds = 0;
     result.mapper = std::make_unique<BatchMapper>(config);
@@ -215,6 +225,13 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
         mapper.finish_scans();
         progress.finish(std::to_string(mapper.stats().rays) + " rays, " +
                         std::to_string(mapper.sdf().octree.num_corners()) + " corners");
+    }
+    if (first_map) {
+        // The first phase trained up to its last round: the map at the refined poses goes on
+        // from there (its scans moved by centimetres; the dynamic-point filter now on).
+        result.warm_start_step = refine.round_step(refine.rounds - 1, mapper.planned_iterations());
+        result.warm_start_corners = mapper.warm_start(*first_map, result.warm_start_step);
+        first_map.reset();
     }
     if (resume) {
         const auto phase = resume->value<std::uint8_t>("phase");

@@ -43,6 +43,7 @@ PoseRefinementConfig PoseRefinementConfig::at_leaf(double leaf_size_m, double mi
     scaled.kernel_scale_m *= scale;
     scaled.coarse_kernel_scale_m *= scale;
     scaled.max_correction_m *= scale;
+    scaled.warm_start_max_shift_m *= scale;
     scaled.min_range_m = min_range;
     scaled.max_range_m = max_range;
     return scaled;
@@ -52,6 +53,18 @@ double PoseRefinementConfig::round_kernel_scale_m(int round) const {
     if (rounds <= 1 || !(coarse_kernel_scale_m > kernel_scale_m)) return kernel_scale_m;
     const double w = static_cast<double>(round) / (rounds - 1);
     return coarse_kernel_scale_m * std::pow(kernel_scale_m / coarse_kernel_scale_m, w);
+}
+
+double PoseRefinementConfig::shift_after_first_round_m(
+    const std::vector<PoseRefinementRound>& rounds) {
+    double shift_m = 0.0;
+    for (std::size_t r = 1; r < rounds.size(); ++r) shift_m += rounds[r].median_translation_m;
+    return shift_m;
+}
+
+bool PoseRefinementConfig::warm_start_fits(const std::vector<PoseRefinementRound>& rounds) const {
+    return warm_start && !rounds.empty() &&
+           shift_after_first_round_m(rounds) <= warm_start_max_shift_m;
 }
 
 std::vector<Eigen::Isometry3d> refine_scan_poses(const NeuralSdf& sdf, const RaySet& rays,
@@ -86,7 +99,14 @@ std::vector<Eigen::Isometry3d> refine_scan_poses(const NeuralSdf& sdf, const Ray
         for (std::size_t r = rays.first_ray(s); r < rays.first_ray(s + 1); ++r) {
             points_sensor.push_back(T_sensor_map * rays.endpoint(r));
         }
-        const std::vector<Eigen::Vector3f> points = select_registration_points(points_sensor, thin);
+        std::vector<Eigen::Vector3f> points = select_registration_points(points_sensor, thin);
+        if (config.max_points > 0 && points.size() > static_cast<std::size_t>(config.max_points)) {
+            // Every k-th point (k fractional): the selection is in scan order, so the subset
+            // keeps its spread over the sweep.
+            const std::size_t n = points.size(), m = static_cast<std::size_t>(config.max_points);
+            for (std::size_t j = 0; j < m; ++j) points[j] = points[j * n / m];
+            points.resize(m);
+        }
         const Eigen::Isometry3d initial_world = translated(origin, T_map_sensor[s]);
         const RegistrationResult result =
             register_to_sdf(points, initial_world, field, registration);

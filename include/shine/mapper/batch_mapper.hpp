@@ -118,6 +118,15 @@ class BatchMapper {
     std::optional<std::vector<Eigen::Isometry3d>> refine_poses(
         const std::function<void(std::size_t done, double bce)>& on_progress = {},
         const std::function<bool()>& stop = {});
+    /// Starts the training from `source` instead of from scratch: ends the loading
+    /// (finish_scans()), copies the decoder and the features of every corner both maps have
+    /// (FeatureOctree::copy_shared_features; the others keep their initial values) and counts
+    /// the steps before `first_step` as done, so that train() runs the rest of the schedule on
+    /// its cosine decay. For pose refinement's second phase (map_sequence): the same scans at
+    /// the refined poses start from the first phase's map. Call before train(); throws
+    /// ConfigError when training has begun or the maps differ in origin, octree or decoder.
+    /// Returns the corners copied.
+    std::size_t warm_start(const NeuralSdf& source, int first_step);
     /// config.refine at this map's leaf and range limits.
     PoseRefinementConfig refinement() const;
     /// The steps of refine_poses(): the last round's step (0 without refinement).

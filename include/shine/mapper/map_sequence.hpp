@@ -51,6 +51,10 @@ struct SequenceMap {
     std::vector<Eigen::Isometry3d> refined_poses_world;
     std::vector<PoseRefinementRound> refinement;
     double refine_seconds = 0.0;
+    /// With refine.warm_start: the corners whose features the map took from the first phase's,
+    /// and the step its training started at (the steps before it count as done).
+    std::size_t warm_start_corners = 0;
+    int warm_start_step = 0;
 };
 
 /// The bake and mesh stages of `products` in profile form.
