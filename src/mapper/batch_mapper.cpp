@@ -8,6 +8,7 @@
 #include <type_traits>
 
 #include "shine/core/error.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/geometry/voxel_groups.hpp"
 #include "shine/io/binary_stream.hpp"
@@ -19,12 +20,6 @@
 #include "shine/sampling/surface_normals.hpp"
 
 namespace shine {
-namespace {
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-}  // namespace
-
 void apply_batch_defaults(MapperConfig& config) {
     if (!config.fine_outdoor_leaf()) return;
     if (!config.is_set("bake.mask_level") && config.bake.mask_level == 0 &&

@@ -14,7 +14,7 @@ namespace shine {
 namespace {
 constexpr std::size_t kTrainHistory = 8;  ///< keyframes whose training time the account expects
 
-void require(bool ok, const char* key, const std::string& rule) {
+void require_keyframes(bool ok, const char* key, const std::string& rule) {
     if (!ok) throw ConfigError(std::string("keyframes.") + key + " must be " + rule);
 }
 }  // namespace
@@ -44,15 +44,17 @@ const char* to_string(KeyframeReason reason) {
 }
 
 KeyframePolicy::KeyframePolicy(const KeyframeConfig& config) : config_(config) {
-    require(config.min_translation_m > 0.0, "min_translation_m", "> 0");
-    require(config.min_rotation_deg > 0.0, "min_rotation_deg", "> 0");
-    require(config.max_interval_scans >= 1, "max_interval_scans", ">= 1");
-    require(config.min_coverage >= 0.0 && config.min_coverage <= 1.0, "min_coverage", "in [0, 1]");
-    require(config.forced_coverage >= 0.0 && config.forced_coverage <= config.min_coverage,
-            "forced_coverage", "in [0, keyframes.min_coverage]");
-    require(config.max_ms_per_scan >= 0.0, "max_ms_per_scan", ">= 0 (0: no budget)");
-    require(config.max_saved_scans >= 1.0, "max_saved_scans", ">= 1");
-    require(config.max_deferred_scans >= 0, "max_deferred_scans", ">= 0");
+    require_keyframes(config.min_translation_m > 0.0, "min_translation_m", "> 0");
+    require_keyframes(config.min_rotation_deg > 0.0, "min_rotation_deg", "> 0");
+    require_keyframes(config.max_interval_scans >= 1, "max_interval_scans", ">= 1");
+    require_keyframes(config.min_coverage >= 0.0 && config.min_coverage <= 1.0, "min_coverage",
+                      "in [0, 1]");
+    require_keyframes(
+        config.forced_coverage >= 0.0 && config.forced_coverage <= config.min_coverage,
+        "forced_coverage", "in [0, keyframes.min_coverage]");
+    require_keyframes(config.max_ms_per_scan >= 0.0, "max_ms_per_scan", ">= 0 (0: no budget)");
+    require_keyframes(config.max_saved_scans >= 1.0, "max_saved_scans", ">= 1");
+    require_keyframes(config.max_deferred_scans >= 0, "max_deferred_scans", ">= 0");
 }
 
 double KeyframePolicy::expected_train_seconds() const {

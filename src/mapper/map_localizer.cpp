@@ -18,7 +18,7 @@
 namespace shine {
 namespace {
 
-void require(bool ok, const std::string& key, const std::string& rule) {
+void require_localize(bool ok, const std::string& key, const std::string& rule) {
     if (!ok) throw ConfigError("localize." + key + " " + rule);
 }
 
@@ -47,34 +47,35 @@ Eigen::Isometry3d turned(const Eigen::Isometry3d& pose, double yaw_rad,
 }  // namespace
 
 void validate(const LocalizeConfig& c) {
-    require(c.voxel_size_m >= 0.0, "voxel_size_m", "must be >= 0");
-    require(c.min_range_m >= 0.0 && c.max_range_m > c.min_range_m, "max_range_m",
-            "must exceed min_range_m (>= 0)");
-    require(!c.kernel_scales_m.empty(), "kernel_scales_m", "needs at least one scale");
+    require_localize(c.voxel_size_m >= 0.0, "voxel_size_m", "must be >= 0");
+    require_localize(c.min_range_m >= 0.0 && c.max_range_m > c.min_range_m, "max_range_m",
+                     "must exceed min_range_m (>= 0)");
+    require_localize(!c.kernel_scales_m.empty(), "kernel_scales_m", "needs at least one scale");
     for (double s : c.kernel_scales_m) {
-        require(s > 0.0, "kernel_scales_m", "must be positive");
+        require_localize(s > 0.0, "kernel_scales_m", "must be positive");
     }
-    require(c.max_iterations >= 1, "max_iterations", "must be >= 1");
-    require(c.max_points >= 0 && c.recovery_max_points >= 0, "max_points",
-            "and recovery_max_points must be >= 0 (0: every selected point)");
-    require(c.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
-    require(c.inlier_distance_m > 0.0, "inlier_distance_m", "must be positive");
-    require(c.min_inlier_ratio >= 0.0 && c.min_inlier_ratio <= 1.0, "min_inlier_ratio",
-            "must be within [0, 1]");
-    require(c.surface_voxel_m > 0.0, "surface_voxel_m", "must be positive");
-    require(c.icp_correspondence_m > 0.0 && c.icp_coarse_correspondence_m > 0.0,
-            "icp_correspondence_m", "and icp_coarse_correspondence_m must be positive");
-    require(c.icp_kernel_scale_m > 0.0, "icp_kernel_scale_m", "must be positive");
-    require(c.icp_min_inlier_ratio >= 0.0 && c.icp_min_inlier_ratio <= 1.0, "icp_min_inlier_ratio",
-            "must be within [0, 1]");
-    require(c.search_radius_m >= 0.0, "search_radius_m", "must be >= 0");
-    require(c.search_spacing_m > 0.0, "search_spacing_m", "must be positive");
-    require(c.lost_search_radius_m >= 0.0, "lost_search_radius_m", "must be >= 0");
-    require(c.search_headings >= 1, "search_headings", "must be >= 1");
-    require(c.search_points >= 10, "search_points", "must be >= 10");
-    require(c.search_registrations >= 1, "search_registrations", "must be >= 1");
-    require(c.place_spacing_m > 0.0, "place_spacing_m", "must be positive");
-    require(c.global_search_after_failures >= 1, "global_search_after_failures", "must be >= 1");
+    require_localize(c.max_iterations >= 1, "max_iterations", "must be >= 1");
+    require_localize(c.max_points >= 0 && c.recovery_max_points >= 0, "max_points",
+                     "and recovery_max_points must be >= 0 (0: every selected point)");
+    require_localize(c.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
+    require_localize(c.inlier_distance_m > 0.0, "inlier_distance_m", "must be positive");
+    require_localize(c.min_inlier_ratio >= 0.0 && c.min_inlier_ratio <= 1.0, "min_inlier_ratio",
+                     "must be within [0, 1]");
+    require_localize(c.surface_voxel_m > 0.0, "surface_voxel_m", "must be positive");
+    require_localize(c.icp_correspondence_m > 0.0 && c.icp_coarse_correspondence_m > 0.0,
+                     "icp_correspondence_m", "and icp_coarse_correspondence_m must be positive");
+    require_localize(c.icp_kernel_scale_m > 0.0, "icp_kernel_scale_m", "must be positive");
+    require_localize(c.icp_min_inlier_ratio >= 0.0 && c.icp_min_inlier_ratio <= 1.0,
+                     "icp_min_inlier_ratio", "must be within [0, 1]");
+    require_localize(c.search_radius_m >= 0.0, "search_radius_m", "must be >= 0");
+    require_localize(c.search_spacing_m > 0.0, "search_spacing_m", "must be positive");
+    require_localize(c.lost_search_radius_m >= 0.0, "lost_search_radius_m", "must be >= 0");
+    require_localize(c.search_headings >= 1, "search_headings", "must be >= 1");
+    require_localize(c.search_points >= 10, "search_points", "must be >= 10");
+    require_localize(c.search_registrations >= 1, "search_registrations", "must be >= 1");
+    require_localize(c.place_spacing_m > 0.0, "place_spacing_m", "must be positive");
+    require_localize(c.global_search_after_failures >= 1, "global_search_after_failures",
+                     "must be >= 1");
 }
 
 const char* to_string(LocalizeSource source) {

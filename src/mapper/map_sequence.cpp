@@ -11,6 +11,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/map_file.hpp"
@@ -19,9 +20,6 @@ namespace shine {
 namespace fs = std::filesystem;
 
 namespace {
-double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 std::string tagged(const std::string& label, const std::string& tag) {
     return tag.empty() ? label : label + " " + tag;

@@ -18,7 +18,7 @@
 namespace shine {
 namespace {
 
-void require(bool ok, const std::string& key, const std::string& rule) {
+void require_odometry(bool ok, const std::string& key, const std::string& rule) {
     if (!ok) throw ConfigError("odometry." + key + " " + rule);
 }
 
@@ -128,23 +128,25 @@ const char* to_string(RegistrationMethod method) {
 }
 
 ScanOdometry::ScanOdometry(const OdometryConfig& config) : config_(config) {
-    require(config.voxel_size_m >= 0.0, "voxel_size_m", "must be >= 0");
-    require(config.min_range_m >= 0.0 && config.max_range_m > config.min_range_m, "max_range_m",
-            "must exceed odometry.min_range_m (>= 0)");
-    require(config.max_iterations >= 1, "max_iterations", "must be at least 1");
-    require(config.icp_warmup_scans >= 0, "icp_warmup_scans", "must be >= 0");
-    require(config.icp_reference_scans >= 1, "icp_reference_scans", "must be at least 1");
-    require(config.icp_max_correspondence_m > 0.0, "icp_max_correspondence_m", "must be positive");
-    require(config.icp_kernel_scale_m > 0.0, "icp_kernel_scale_m", "must be positive");
-    require(config.icp_yaw_hypotheses >= 1, "icp_yaw_hypotheses", "must be at least 1");
-    require(config.icp_min_inlier_ratio >= 0.0 && config.icp_min_inlier_ratio <= 1.0,
-            "icp_min_inlier_ratio", "must be in [0, 1]");
-    require(config.sdf_kernel_scale_m > 0.0, "sdf_kernel_scale_m", "must be positive");
-    require(config.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
-    require(config.min_scan_points >= 0, "min_scan_points", "must be >= 0");
-    require(config.sweep_prior_translation_m > 0.0, "sweep_prior_translation_m",
-            "must be positive");
-    require(config.sweep_prior_rotation_deg > 0.0, "sweep_prior_rotation_deg", "must be positive");
+    require_odometry(config.voxel_size_m >= 0.0, "voxel_size_m", "must be >= 0");
+    require_odometry(config.min_range_m >= 0.0 && config.max_range_m > config.min_range_m,
+                     "max_range_m", "must exceed odometry.min_range_m (>= 0)");
+    require_odometry(config.max_iterations >= 1, "max_iterations", "must be at least 1");
+    require_odometry(config.icp_warmup_scans >= 0, "icp_warmup_scans", "must be >= 0");
+    require_odometry(config.icp_reference_scans >= 1, "icp_reference_scans", "must be at least 1");
+    require_odometry(config.icp_max_correspondence_m > 0.0, "icp_max_correspondence_m",
+                     "must be positive");
+    require_odometry(config.icp_kernel_scale_m > 0.0, "icp_kernel_scale_m", "must be positive");
+    require_odometry(config.icp_yaw_hypotheses >= 1, "icp_yaw_hypotheses", "must be at least 1");
+    require_odometry(config.icp_min_inlier_ratio >= 0.0 && config.icp_min_inlier_ratio <= 1.0,
+                     "icp_min_inlier_ratio", "must be in [0, 1]");
+    require_odometry(config.sdf_kernel_scale_m > 0.0, "sdf_kernel_scale_m", "must be positive");
+    require_odometry(config.max_condition_number > 1.0, "max_condition_number", "must exceed 1");
+    require_odometry(config.min_scan_points >= 0, "min_scan_points", "must be >= 0");
+    require_odometry(config.sweep_prior_translation_m > 0.0, "sweep_prior_translation_m",
+                     "must be positive");
+    require_odometry(config.sweep_prior_rotation_deg > 0.0, "sweep_prior_rotation_deg",
+                     "must be positive");
 }
 
 Eigen::Isometry3d ScanOdometry::sweep_motion(std::size_t i) const {
