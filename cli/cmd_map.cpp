@@ -722,6 +722,7 @@ int run_map(const MapOptions& given_options) {
             {"used", batch_map->warm_start_corners > 0},
             {"corners", batch_map->warm_start_corners},
             {"from_step", batch_map->warm_start_step},
+            {"steps_trained", batch_map->mapper->stats().iterations},
             {"shift_after_first_round_m",
              PoseRefinementConfig::shift_after_first_round_m(batch_map->refinement)}};
         const PoseRefinementRound& last = batch_map->refinement.back();
@@ -753,7 +754,10 @@ int run_map(const MapOptions& given_options) {
     json["threads"] = config.threads;
     json["leaf_size_m"] = config.octree.leaf_size_m;
     json["scene"] = to_string(config.resolved_scene());
-    json["iterations"] = stats.iterations;
+    // The schedule's steps; a warm-started batch map trained the last ones of them
+    // (refine.warm_start.steps_trained).
+    json["iterations"] = batch_map ? static_cast<std::size_t>(batch_map->mapper->iterations_done())
+                                   : stats.iterations;
     json["dynamic"] = {
         {"enabled", config.dynamic.enabled},
         {"points_dropped", stats.dynamic_points_dropped},
