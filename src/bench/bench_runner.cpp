@@ -257,6 +257,18 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
     for (std::size_t i = 0; i < scans.size(); ++i) {
         if (!is_heldout(i)) mapped.push_back(i);
     }
+    // A ShineVDB run's figures: its stats, its map, its map.vdb in `dir` and its wall time.
+    const auto fill_shine_row = [](BenchRow& row, const MappingStats& stats, const NeuralSdf& sdf,
+                                   const fs::path& dir, double wall_seconds) {
+        const double mapping_seconds = stats.load_seconds + stats.allocate_seconds +
+                                       stats.normals_seconds + stats.train_seconds;
+        row.frames = stats.frames;
+        row.iterations = stats.iterations;
+        row.map_bytes = sdf.memory_bytes();
+        row.file_bytes = file_bytes(dir / "map.vdb");
+        row.seconds = wall_seconds;
+        row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
+    };
     // The scans' read time is not counted, as the TSDF gets its scans read.
     const auto read_seconds = [](const StageProfile& profile) {
         double seconds = 0.0;
@@ -301,15 +313,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         }
 
         BenchRow row = shine_row;
-        const MappingStats& stats = run.mapper->stats();
-        const double mapping_seconds = stats.load_seconds + stats.allocate_seconds +
-                                       stats.normals_seconds + stats.train_seconds;
-        row.frames = stats.frames;
-        row.iterations = stats.iterations;
-        row.map_bytes = run.mapper->sdf().memory_bytes();
-        row.file_bytes = file_bytes(dir / "map.vdb");
-        row.seconds = wall_seconds;
-        row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
+        fill_shine_row(row, run.mapper->stats(), run.mapper->sdf(), dir, wall_seconds);
         const std::size_t triangles = run.products.mesh.triangles;
         run.mapper.reset();  // its memory goes to the evaluation and to incremental mode
         Progress progress("shine " + tag, 1);
@@ -331,15 +335,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         BenchRow row;
         row.method = BenchMethod::kShineVdbIncremental;
         row.size_m = size_m;
-        const MappingStats& stats = run.mapper->stats();
-        const double mapping_seconds = stats.load_seconds + stats.allocate_seconds +
-                                       stats.normals_seconds + stats.train_seconds;
-        row.frames = stats.frames;
-        row.iterations = stats.iterations;
-        row.map_bytes = run.mapper->sdf().memory_bytes();
-        row.file_bytes = file_bytes(dir / "map.vdb");
-        row.seconds = wall_seconds;
-        row.seconds_per_frame = stats.frames ? mapping_seconds / stats.frames : 0.0;
+        fill_shine_row(row, run.mapper->stats(), run.mapper->sdf(), dir, wall_seconds);
         const std::size_t triangles = run.products.mesh.triangles;
         run.mapper.reset();
         Progress progress("incremental " + tag, 1);
