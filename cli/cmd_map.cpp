@@ -677,25 +677,20 @@ int run_map(const MapOptions& given_options) {
         // The poses the map started from: the data's, or with estimated poses the estimates
         // (held-out scans placed next to them).
         std::vector<Eigen::Isometry3d> given(selected.size());
-        std::vector<double> frame_numbers(selected.size());
-        std::vector<bool> is_mapped(selected.size(), false);
-        for (std::size_t i = 0; i < selected.size(); ++i) {
-            given[i] = selected.pose(i);
-            frame_numbers[i] = static_cast<double>(selected.frame_number(i));
-        }
-        for (const std::size_t m : split.mapped) is_mapped[m] = true;
+        for (std::size_t i = 0; i < selected.size(); ++i) given[i] = selected.pose(i);
         if (odometry_run) {
             given =
                 heldout_poses_local_to_estimate(selected, split, odometry_run->odometry->poses());
         }
-        const std::vector<Eigen::Isometry3d> refined = interpolate_corrections(
-            given, is_mapped, batch_map->refined_poses_world, frame_numbers);
+        const std::vector<Eigen::Isometry3d> refined =
+            poses_with_corrections(selected, split.mapped, given, batch_map->refined_poses_world);
         write_kitti_poses(out / "poses_refined.txt", refined);
         std::vector<StampedPose> stamped(refined.size());
         for (std::size_t i = 0; i < refined.size(); ++i) {
-            stamped[i].timestamp_s = selected.from_recording()
-                                         ? selected.stamp_s(i)
-                                         : frame_numbers[i] * config.deskew.scan_period_s;
+            stamped[i].timestamp_s =
+                selected.from_recording()
+                    ? selected.stamp_s(i)
+                    : static_cast<double>(selected.frame_number(i)) * config.deskew.scan_period_s;
             stamped[i].T_world_sensor = refined[i];
         }
         write_tum_poses(out / "poses_refined_tum.txt", stamped);

@@ -14,7 +14,6 @@
 #include "shine/io/ply.hpp"
 #include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
-#include "shine/mapper/pose_refinement.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
 #include "shine/mapper/sweep_test.hpp"
 #include "shine/model/map_file.hpp"
@@ -293,15 +292,9 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         ScanSequence scored = selected;
         if (!run.refined_poses_world.empty()) {
             std::vector<Eigen::Isometry3d> given(selected.size());
-            std::vector<double> frame_numbers(selected.size());
-            std::vector<bool> is_mapped(selected.size(), false);
-            for (std::size_t i = 0; i < selected.size(); ++i) {
-                given[i] = selected.pose(i);
-                frame_numbers[i] = static_cast<double>(selected.frame_number(i));
-            }
-            for (const std::size_t m : mapped) is_mapped[m] = true;
+            for (std::size_t i = 0; i < selected.size(); ++i) given[i] = selected.pose(i);
             scored = selected.with_poses(
-                interpolate_corrections(given, is_mapped, run.refined_poses_world, frame_numbers));
+                poses_with_corrections(selected, mapped, given, run.refined_poses_world));
         }
         ScanPreparation prepare;
         DeskewStats deskew_stats;

@@ -285,6 +285,19 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
     return result;
 }
 
+std::vector<Eigen::Isometry3d> poses_with_corrections(
+    const ScanSequence& selected, const std::vector<std::size_t>& mapped,
+    const std::vector<Eigen::Isometry3d>& given_world,
+    const std::vector<Eigen::Isometry3d>& refined_mapped) {
+    std::vector<double> frame_numbers(selected.size());
+    std::vector<bool> is_mapped(selected.size(), false);
+    for (std::size_t i = 0; i < selected.size(); ++i) {
+        frame_numbers[i] = static_cast<double>(selected.frame_number(i));
+    }
+    for (const std::size_t m : mapped) is_mapped.at(m) = true;
+    return interpolate_corrections(given_world, is_mapped, refined_mapped, frame_numbers);
+}
+
 StageSeconds product_stages(const MapProducts& products) {
     StageSeconds stages;
     stages[Stage::kBake] = products.bake_seconds;

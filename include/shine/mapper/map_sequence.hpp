@@ -94,4 +94,14 @@ SequenceMap map_sequence(const MapperConfig& config, const ScanSequence& sequenc
                          const std::filesystem::path& out_dir, const std::string& progress_tag = {},
                          const RunControl* control = nullptr);
 
+/// Every scan of `selected` placed with pose refinement's corrections (interpolate_corrections):
+/// the scans `mapped` (indices into `selected`, ascending) at `refined_mapped`, each other scan at
+/// `given_world[i]` corrected as the mapped scans around it were, by frame number. `given_world`
+/// holds the poses the map started from, one per scan of `selected`. Throws DataError for
+/// mismatched counts.
+std::vector<Eigen::Isometry3d> poses_with_corrections(
+    const ScanSequence& selected, const std::vector<std::size_t>& mapped,
+    const std::vector<Eigen::Isometry3d>& given_world,
+    const std::vector<Eigen::Isometry3d>& refined_mapped);
+
 }  // namespace shine
