@@ -16,6 +16,21 @@
 namespace shine {
 namespace {
 
+constexpr int kRandomPoints = 20000;
+
+/// kRandomPoints random points in a 6 m cube around a sensor 1 km from the world origin.
+Scan random_scan(unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> coordinate(-3.0f, 3.0f);
+    Scan scan;
+    scan.source = "random";
+    scan.T_world_sensor.translation() = Eigen::Vector3d(1000.3, -20.7, 1.1);
+    for (int i = 0; i < kRandomPoints; ++i) {
+        scan.points_sensor.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+    }
+    return scan;
+}
+
 Scan scan_at(const Eigen::Vector3d& position_world_m) {
     Scan scan;
     for (int i = -10; i <= 10; ++i) {
@@ -102,13 +117,8 @@ TEST(ScanInMap, EachKeptPointKeepsItsIntensityThroughThinningCropAndRunDrops) {
     // 20 000 random points, point i with intensity i (NaN for every 97th: kept with its point),
     // thinned or grouped in 0.5 m voxels, cropped in the world: every kept point carries the
     // intensity of the input point it is. A scan without intensity carries none.
-    std::mt19937 rng(11);
-    std::uniform_real_distribution<float> coordinate(-3.0f, 3.0f);
-    Scan scan;
-    scan.source = "random";
-    scan.T_world_sensor.translation() = Eigen::Vector3d(1000.3, -20.7, 1.1);
-    for (int i = 0; i < 20000; ++i) {
-        scan.points_sensor.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+    Scan scan = random_scan(11);
+    for (int i = 0; i < kRandomPoints; ++i) {
         scan.intensity.push_back(i % 97 == 5 ? NAN : static_cast<float>(i));
     }
     MapperConfig config;
@@ -190,13 +200,8 @@ TEST(ScanInMap, VoxelLeadsAreTheThinnedScanAndRunsDropWithTheirLeads) {
     // 20 000 random points, each with its own origin, in 0.5 m voxels: the leads of the grouped
     // scan are the thinned scan point for point; dropping runs by flag keeps the other runs whole
     // and in order, with their origins.
-    std::mt19937 rng(7);
-    std::uniform_real_distribution<float> coordinate(-3.0f, 3.0f);
-    Scan scan;
-    scan.source = "random";
-    scan.T_world_sensor.translation() = Eigen::Vector3d(1000.3, -20.7, 1.1);
-    for (int i = 0; i < 20000; ++i) {
-        scan.points_sensor.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+    Scan scan = random_scan(7);
+    for (int i = 0; i < kRandomPoints; ++i) {
         scan.point_origin_sensor.emplace_back(0.001f * static_cast<float>(i), 0.0f, 0.0f);
     }
     MapperConfig config;
