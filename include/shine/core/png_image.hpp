@@ -1,10 +1,18 @@
 // An 8-bit RGB raster image in memory, written as PNG (libpng) under a temporary name and renamed,
 // so a failed or interrupted write never leaves a truncated image. Used for plots (shine bench)
 // and pictures; drawing primitives live in raster.hpp.
+//
+// Reading (camera images, io/camera_rig.hpp) takes any PNG and keeps the stored values: every bit
+// depth, colour type and interlacing is converted to 8-bit RGB (16 bits rounded to v * 255 /
+// 65535, grey copied to r = g = b, a palette looked up), alpha and tRNS transparency are dropped
+// rather than composed onto a background, and gAMA / sRGB / iCCP chunks are not applied. libpng's
+// errors longjmp only across two small functions that own nothing (png_image.cpp); every buffer
+// is owned outside them, so a corrupt file ends in an IoError, never a leak.
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
+#include <string_view>
 #include <vector>
 
 namespace shine {
@@ -51,6 +59,15 @@ class RgbImage {
     /// Writes the image as an 8-bit RGB PNG, atomically (temporary file + rename). Throws IoError
     /// naming `path` and libpng's message if the file cannot be written.
     void write_png(const std::filesystem::path& path) const;
+
+    /// Reads a PNG file as 8-bit RGB (any bit depth, grey, grey + alpha, RGB, RGBA, palette,
+    /// interlaced; conversions above). Throws IoError naming `path` if it is missing or
+    /// unreadable, and IoError naming it with libpng's message if it is not a PNG, truncated or
+    /// corrupt, or larger than kMaxSide.
+    static RgbImage read_png(const std::filesystem::path& path);
+
+    /// read_png on bytes already in memory; `source` names them in messages.
+    static RgbImage parse_png(std::string_view data, const std::filesystem::path& source);
 
   private:
     int width_;
