@@ -5,6 +5,8 @@ Modules, one concern each:
     vdb_header        pure-Python check of a .vdb file's structure (grids, truncation)
     vdb_probe         crash-isolated check of a grid's voxel data in a child Blender
                       (whose script is vdb_probe_child.py)
+    map_colours       a map's colours and intensity (from mesh.ply) on the imported mesh
+    ply_vertices      pure-Python reader of a binary PLY file's vertices
     map_job           a ``shine map`` child process and its progress lines (no Blender API)
     map_run           this session's mapping run: timer, completion, import
     map_panel         the 3D view sidebar panel and its operators

@@ -13,17 +13,23 @@ the grid's ``shine_origin_world_m`` metadata; Blender's float32 coordinates woul
 at 5e6 m. The importer keeps the mesh in the local frame and stores that origin on the object as
 the custom property ``shine_origin_world_m`` (x, y, z in metres), as ``mesh.ply`` carries it in
 its header.
+
+Colours and LiDAR intensity: when ``mesh.ply`` beside the ``.vdb`` has them as vertex properties
+(``shine map`` also writes grids ``color`` and ``intensity``), the applied mesh gets the point
+attributes ``Col`` and ``intensity`` and the material ``ShineVDB colour``; the rule and its
+warnings are in :mod:`.map_colours`.
 """
 
 import os
-from typing import List
+from typing import List, Optional
 
 import bpy
 from bpy.props import BoolProperty, FloatProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 from mathutils import Matrix, Vector
 
-from . import vdb_header, vdb_probe
+from . import map_colours, vdb_header, vdb_probe
+from .map_colours import Message
 from .vdb_header import GridInfo, VdbFileError
 
 DEFAULT_GRID_NAME = "surface"  # the grid `shine map` and `shine bake` write
@@ -43,6 +49,7 @@ def import_level_set(
     adaptivity: float = 0.0,
     smooth_shading: bool = True,
     verify: bool = True,
+    messages: Optional[List[Message]] = None,
 ) -> bpy.types.Object:
     """Imports grid ``grid_name`` of the level set ``filepath`` and returns the new mesh object.
 
@@ -58,6 +65,8 @@ def import_level_set(
         smooth_shading: shade the mesh smooth.
         verify: first load and mesh the grid in a separate background Blender, so that a
             corrupt file fails with a message instead of aborting this Blender.
+        messages: if given, receives ("INFO" | "WARNING", text) pairs for the user: what was
+            imported from ``mesh.ply``, and why colours were not (the import still succeeds).
 
     Raises:
         LevelSetImportError: the file is missing, corrupt, has no such float level-set grid, or
@@ -65,16 +74,29 @@ def import_level_set(
     """
     path = os.path.abspath(bpy.path.abspath(filepath))
     try:
-        grid = _find_level_set_grid(path, vdb_header.read_grids(path), grid_name)
+        grids = vdb_header.read_grids(path)
+        grid = _find_level_set_grid(path, grids, grid_name)
         if verify:
             vdb_probe.verify_grid_in_subprocess(path, grid.name)
     except VdbFileError as error:
         raise LevelSetImportError(str(error)) from None
 
+    if messages is None:
+        messages = []
+    colours = map_colours.find_vertex_colours(path, [info.name for info in grids], messages)
+    if colours is not None and not apply_modifier:
+        messages.append(("WARNING", f"the {colours.describe()} of '{colours.path}' need Apply "
+                         "Modifier (a live modifier's mesh cannot keep attributes): imported "
+                         "without them"))
+        colours = None
     created: List[bpy.types.ID] = []
     try:
-        mesh_object = _build_objects(path, grid.name, collection, view_layer, created,
-                                     keep_volume, apply_modifier, adaptivity, smooth_shading)
+        mesh_object, voxel_size_m = _build_objects(
+            path, grid.name, collection, view_layer, created, keep_volume, apply_modifier,
+            adaptivity, smooth_shading)
+        if colours is not None:
+            map_colours.apply_vertex_colours(mesh_object, colours, voxel_size_m, messages,
+                                             created)
     except BaseException:
         bpy.data.batch_remove(created)  # leave nothing of a failed import behind
         raise
@@ -102,8 +124,11 @@ def _find_level_set_grid(path: str, grids: List[GridInfo], grid_name: str) -> Gr
 
 
 def _build_objects(path, grid_name, collection, view_layer, created, keep_volume,
-                   apply_modifier, adaptivity, smooth_shading) -> bpy.types.Object:
-    """Creates the Volume and mesh objects; appends every new data-block to ``created``."""
+                   apply_modifier, adaptivity, smooth_shading):
+    """Creates the Volume and mesh objects; appends every new data-block to ``created``.
+
+    Returns the mesh object and the grid's voxel size in metres (the mean over its axes).
+    """
     name = os.path.splitext(os.path.basename(path))[0]
     volume = bpy.data.volumes.new(name)
     created.append(volume)
@@ -117,7 +142,9 @@ def _build_objects(path, grid_name, collection, view_layer, created, keep_volume
     volume_object = bpy.data.objects.new(f"{name}_volume", volume)
     created.append(volume_object)
     collection.objects.link(volume_object)
-    volume_object.matrix_world = Matrix.Translation(-_half_voxel_world(grid))
+    half_voxel = _half_voxel_world(grid)
+    voxel_size_m = 2.0 * sum(half_voxel) / 3.0
+    volume_object.matrix_world = Matrix.Translation(-half_voxel)
 
     mesh_object = bpy.data.objects.new(name, bpy.data.meshes.new(name))
     created.extend((mesh_object, mesh_object.data))
@@ -146,7 +173,7 @@ def _build_objects(path, grid_name, collection, view_layer, created, keep_volume
         bpy.data.meshes.remove(modifier_mesh)
         applied.name = name
     if keep_volume:
-        return mesh_object
+        return mesh_object, voxel_size_m
     if apply_modifier:
         for block in (volume_object, volume):
             created.remove(block)
@@ -154,7 +181,7 @@ def _build_objects(path, grid_name, collection, view_layer, created, keep_volume
     else:
         volume_object.hide_set(True, view_layer=view_layer)
         volume_object.hide_render = True
-    return mesh_object
+    return mesh_object, voxel_size_m
 
 
 def _half_voxel_world(grid: bpy.types.VolumeGrid) -> Vector:
@@ -190,7 +217,8 @@ class IMPORT_SCENE_OT_shinevdb_level_set(bpy.types.Operator, ImportHelper):
     )
     apply_modifier: BoolProperty(
         name="Apply Modifier",
-        description="Turn the Volume to Mesh modifier's result into plain mesh data",
+        description="Turn the Volume to Mesh modifier's result into plain mesh data (needed "
+        "for a map's colours and intensity from mesh.ply)",
         default=True,
     )
     adaptivity: FloatProperty(
@@ -209,6 +237,7 @@ class IMPORT_SCENE_OT_shinevdb_level_set(bpy.types.Operator, ImportHelper):
     )
 
     def execute(self, context):
+        messages: List[Message] = []
         try:
             import_level_set(
                 self.filepath,
@@ -220,10 +249,13 @@ class IMPORT_SCENE_OT_shinevdb_level_set(bpy.types.Operator, ImportHelper):
                 adaptivity=self.adaptivity,
                 smooth_shading=self.smooth_shading,
                 verify=self.verify,
+                messages=messages,
             )
         except LevelSetImportError as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
+        for level, text in messages:
+            self.report({level}, text)
         return {"FINISHED"}
 
 

@@ -3,7 +3,8 @@
 Blender's interface stays responsive because nothing here waits for ``shine``: :func:`start`
 launches a :class:`~.map_job.MapJob` and registers :func:`step` as a ``bpy.app.timers`` callback,
 which takes in the job's output a few times a second and, once the job has ended, imports
-``OUT/surface.vdb`` or records the error for the panel (and pops it up). Background scripts and
+``OUT/surface.vdb`` (with the colours and intensity of ``OUT/mesh.ply`` when the map has them,
+as File › Import does) or records the error for the panel (and pops it up). Background scripts and
 tests, where timers do not fire, call :func:`wait_until_done`, which runs the same :func:`step`.
 """
 
@@ -173,6 +174,7 @@ def _finish(run: MapRun) -> None:
     surface_path = os.path.join(run.output_dir, SURFACE_FILE)
     scene = bpy.data.scenes.get(run.scene_name)
     view_layer = scene.view_layers.get(run.view_layer_name) if scene is not None else None
+    messages: List[level_set_import.Message] = []
     try:
         if view_layer is None:
             raise level_set_import.LevelSetImportError(
@@ -182,6 +184,7 @@ def _finish(run: MapRun) -> None:
             surface_path,
             collection=view_layer.active_layer_collection.collection,
             view_layer=view_layer,
+            messages=messages,
         )
     except level_set_import.LevelSetImportError as error:
         run.state = "failed"
@@ -191,6 +194,10 @@ def _finish(run: MapRun) -> None:
     run.state = "done"
     run.imported_object = mesh_object.name
     run.summary.append(f"imported '{mesh_object.name}' from {surface_path}")
+    for level, text in messages:  # colours and intensity, or why there are none
+        run.summary.append(f"warning: {text}" if level == "WARNING" else text)
+        if level == "WARNING":
+            print(f"ShineVDB: {text}", file=sys.stderr)
 
 
 def _set_progress(fraction: float) -> None:

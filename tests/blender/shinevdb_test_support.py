@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import struct
 import sys
 from dataclasses import dataclass
 from typing import Tuple
@@ -221,3 +222,93 @@ def check_coincides(obj: bpy.types.Object, ply_path: str, voxel_size_m: float,
     expect(to_blender.max() < limit_m,
            f"{label}: a PLY vertex is {to_blender.max():.5f} m from Blender's mesh "
            f"(limit {limit_m} m)")
+
+
+def _read_string(data: bytes, offset: int) -> Tuple[str, int]:
+    (length,) = struct.unpack_from("<I", data, offset)
+    return data[offset + 4 : offset + 4 + length].decode(), offset + 4 + length
+
+
+def _skip_metadata(data: bytes, offset: int) -> int:
+    """Returns the offset after the OpenVDB MetaMap at ``offset``."""
+    (count,) = struct.unpack_from("<i", data, offset)
+    offset += 4
+    for _ in range(count):
+        _, offset = _read_string(data, offset)  # name
+        _, offset = _read_string(data, offset)  # type name
+        (size,) = struct.unpack_from("<I", data, offset)
+        offset += 4 + size
+    return offset
+
+
+def _string_bytes(text: str) -> bytes:
+    return struct.pack("<I", len(text)) + text.encode()
+
+
+# Bytes of the maps shine's grids use (openvdb/math/Maps.h, write()): 5 or 6 Vec3d.
+_MAP_BYTES = {"UniformScaleMap": 120, "ScaleMap": 120, "UniformScaleTranslateMap": 144,
+              "ScaleTranslateMap": 144}
+
+
+def append_empty_grid(path: str, name: str, tree_type: str, background: bytes) -> None:
+    """Appends a grid without voxels to the OpenVDB file ``path``, with the first grid's transform.
+
+    OpenVDB's Python module is not in Debian's Blender, so this writes the file format directly
+    (openvdb/io/Archive.cc writeGrid): a descriptor (name, type, parent, grid/block/end offsets),
+    the compression flags, a MetaMap with the class and name, the transform, and an empty tree's
+    topology (buffer count 1, the background value, no tiles, no children; no buffers follow).
+    Used to give a map the ``color`` / ``intensity`` grids the importer looks for; it reads only
+    their descriptors, never their voxels.
+    """
+    with open(path, "rb") as vdb:
+        data = bytearray(vdb.read())
+    count_offset = _skip_metadata(data, 8 + 4 + 8 + 1 + 36)  # magic, version, library, flag, uuid
+    (grid_count,) = struct.unpack_from("<i", data, count_offset)
+    offset = count_offset + 4
+    for _ in range(3):  # the first grid's unique name, type and instance parent
+        _, offset = _read_string(data, offset)
+    (grid_pos,) = struct.unpack_from("<q", data, offset)
+    transform_start = _skip_metadata(data, grid_pos + 4)  # after the compression flags
+    map_type, map_start = _read_string(data, transform_start)
+    expect(map_type in _MAP_BYTES, f"{path}: transform '{map_type}' is not supported here")
+    transform = bytes(data[transform_start : map_start + _MAP_BYTES[map_type]])
+
+    descriptor = _string_bytes(name) + _string_bytes(tree_type) + _string_bytes("")
+    new_grid_pos = len(data) + len(descriptor) + 3 * 8
+    metadata = struct.pack("<i", 2)
+    for key, value in (("class", "unknown"), ("name", name)):  # Blender looks grids up by "name"
+        metadata += _string_bytes(key) + _string_bytes("string") + _string_bytes(value)
+    body = struct.pack("<I", 0) + metadata + transform
+    topology = struct.pack("<i", 1) + background + struct.pack("<II", 0, 0)
+    block_pos = new_grid_pos + len(body) + len(topology)
+    data += descriptor + struct.pack("<qqq", new_grid_pos, block_pos, block_pos) + body + topology
+    struct.pack_into("<i", data, count_offset, grid_count + 1)
+    with open(path, "wb") as vdb:
+        vdb.write(data)
+
+
+def write_ply(path: str, vertices: np.ndarray, triangles: np.ndarray,
+              extra: Tuple[Tuple[str, np.ndarray], ...] = ()) -> None:
+    """Writes a binary little-endian triangle PLY as shine does, with more vertex properties
+    ``extra`` ((name, values), uint8 values as uchar, float32 as float) after x, y, z."""
+    ply_types = {np.dtype("u1"): "uchar", np.dtype("<f4"): "float"}
+    fields = [(axis, "<f4") for axis in "xyz"] + [(name, values.dtype.str)
+                                                  for name, values in extra]
+    records = np.empty(len(vertices), np.dtype(fields))
+    for axis, column in zip("xyz", vertices.T):
+        records[axis] = column
+    for name, values in extra:
+        records[name] = values
+    header = ["ply", "format binary_little_endian 1.0", "comment written by the Blender tests",
+              f"element vertex {len(vertices)}"]
+    header += [f"property float {axis}" for axis in "xyz"]
+    header += [f"property {ply_types[values.dtype]} {name}" for name, values in extra]
+    header += [f"element face {len(triangles)}", "property list uchar int vertex_indices",
+               "end_header"]
+    faces = np.empty(len(triangles), np.dtype([("count", "u1"), ("indices", "<i4", 3)]))
+    faces["count"] = 3
+    faces["indices"] = triangles
+    with open(path, "wb") as ply:
+        ply.write(("\n".join(header) + "\n").encode("ascii"))
+        ply.write(records.tobytes())
+        ply.write(faces.tobytes())
