@@ -99,6 +99,60 @@ TEST(PlyMesh, RoundTripWithoutObservedHasNoFlags) {
     EXPECT_EQ(back.triangles[7], mesh.triangles[7]);
 }
 
+TEST(PlyMesh, VertexColoursAndIntensityRoundTripExactly) {
+    const fs::path path = test_dir("appearance") / "mesh.ply";
+    shine::TriangleMesh mesh = random_mesh(300, 500, /*observed=*/false);
+    for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+        mesh.vertex_rgb.push_back({static_cast<std::uint8_t>(i),
+                                   static_cast<std::uint8_t>(255 - i % 256),
+                                   static_cast<std::uint8_t>(i * 7)});
+        mesh.vertex_intensity.push_back(i % 10 == 0 ? std::nanf("")
+                                                    : 0.01f * static_cast<float>(i));
+    }
+    shine::write_ply_mesh(path, mesh);
+    const shine::TriangleMesh back = shine::read_ply_mesh(path);
+    ASSERT_EQ(back.vertex_rgb.size(), mesh.vertices.size());
+    ASSERT_EQ(back.vertex_intensity.size(), mesh.vertices.size());
+    for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+        EXPECT_EQ(back.vertices[i], mesh.vertices[i]);
+        EXPECT_EQ(back.vertex_rgb[i], mesh.vertex_rgb[i]);
+        if (i % 10 == 0) {
+            EXPECT_TRUE(std::isnan(back.vertex_intensity[i]));
+        } else {
+            EXPECT_EQ(back.vertex_intensity[i], mesh.vertex_intensity[i]);
+        }
+    }
+    EXPECT_EQ(back.triangles, mesh.triangles);
+    // Without appearance the file stays what it was (no new properties).
+    mesh.vertex_rgb.clear();
+    mesh.vertex_intensity.clear();
+    shine::write_ply_mesh(path, mesh);
+    EXPECT_TRUE(shine::read_ply_mesh(path).vertex_rgb.empty());
+    // A wrong count is refused and writes nothing.
+    mesh.vertex_rgb.resize(3);
+    EXPECT_THROW(shine::write_ply_mesh(test_dir("appearance_bad") / "mesh.ply", mesh),
+                 shine::DataError);
+    EXPECT_FALSE(fs::exists(test_dir("appearance_bad") / "mesh.ply"));
+}
+
+TEST(PlyMesh, ReadsColoursOfAnAsciiMeshWrittenByHand) {
+    // The layout MeshLab and Open3D write: uchar red green blue (and alpha) after x y z.
+    const fs::path path = test_dir("ascii_colours") / "mesh.ply";
+    write_bytes(path,
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+                "property uchar alpha\nproperty float intensity\nelement face 1\n"
+                "property list uchar int vertex_indices\nend_header\n"
+                "0 0 0 255 0 0 255 0.5\n1 0 0 0 128 0 255 0.25\n0 1 0 1 2 3 255 7\n3 0 1 2\n");
+    const shine::TriangleMesh mesh = shine::read_ply_mesh(path);
+    ASSERT_EQ(mesh.vertex_rgb.size(), 3u);
+    EXPECT_EQ(mesh.vertex_rgb[0], (std::array<std::uint8_t, 3>{255, 0, 0}));
+    EXPECT_EQ(mesh.vertex_rgb[1], (std::array<std::uint8_t, 3>{0, 128, 0}));
+    EXPECT_EQ(mesh.vertex_rgb[2], (std::array<std::uint8_t, 3>{1, 2, 3}));
+    ASSERT_EQ(mesh.vertex_intensity.size(), 3u);
+    EXPECT_EQ(mesh.vertex_intensity[2], 7.0f);
+}
+
 TEST(PlyMesh, EmptyMeshRoundTrips) {
     const fs::path path = test_dir("empty_mesh") / "mesh.ply";
     shine::write_ply_mesh(path, shine::TriangleMesh{});

@@ -7,6 +7,7 @@
 // writer (meshes too large to hold) spools vertices and faces to two files and joins them.
 #include "shine/io/ply.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -513,6 +514,28 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
                     result->intensity.resize(static_cast<std::size_t>(e.count));
                 }
             }
+            // Meshes: the appearance of mesh.ply (red, green, blue as 0..255; intensity).
+            int rgb_index[3] = {-1, -1, -1};
+            int mesh_intensity_index = -1;
+            if (want_faces) {
+                static const char* const kRgbNames[3] = {"red", "green", "blue"};
+                for (std::size_t i = 0; i < e.properties.size(); ++i) {
+                    const Property& p = e.properties[i];
+                    if (p.is_list) continue;
+                    for (int c = 0; c < 3; ++c) {
+                        if (p.name == kRgbNames[c]) rgb_index[c] = static_cast<int>(i);
+                    }
+                    if (p.name == "intensity") mesh_intensity_index = static_cast<int>(i);
+                }
+                if (rgb_index[0] >= 0 && rgb_index[1] >= 0 && rgb_index[2] >= 0) {
+                    mesh.vertex_rgb.resize(static_cast<std::size_t>(e.count));
+                } else {
+                    rgb_index[0] = rgb_index[1] = rgb_index[2] = -1;
+                }
+                if (mesh_intensity_index >= 0) {
+                    mesh.vertex_intensity.resize(static_cast<std::size_t>(e.count));
+                }
+            }
             mesh.vertices.resize(static_cast<std::size_t>(e.count));
             for (std::uint64_t v = 0; v < e.count; ++v) {
                 Eigen::Vector3f& out = mesh.vertices[static_cast<std::size_t>(v)];
@@ -535,6 +558,17 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
                     }
                     if (static_cast<int>(i) == intensity_index) {
                         result->intensity[static_cast<std::size_t>(v)] = static_cast<float>(value);
+                    }
+                    for (int c = 0; c < 3; ++c) {
+                        if (static_cast<int>(i) == rgb_index[c]) {
+                            const double level = std::isnan(value) ? 0.0 : value;
+                            mesh.vertex_rgb[static_cast<std::size_t>(v)][c] =
+                                static_cast<std::uint8_t>(std::clamp(level, 0.0, 255.0));
+                        }
+                    }
+                    if (static_cast<int>(i) == mesh_intensity_index) {
+                        mesh.vertex_intensity[static_cast<std::size_t>(v)] =
+                            static_cast<float>(value);
                     }
                 }
                 // Scans may hold NaN for "no return" (preprocess_scan drops it); a mesh vertex
@@ -662,7 +696,8 @@ char* put_le(char* out, T value) {
 std::string header_text(std::size_t vertex_count, std::size_t face_count, bool with_faces,
                         bool with_observed,
                         const Eigen::Vector3d& origin_world_m = Eigen::Vector3d::Zero(),
-                        bool with_time = false) {
+                        bool with_time = false, bool with_rgb = false,
+                        bool with_intensity = false) {
     std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by ShineVDB\n";
     if (!origin_world_m.isZero(0.0)) {
         h += "comment " + std::string(kOriginComment);
@@ -672,6 +707,8 @@ std::string header_text(std::size_t vertex_count, std::size_t face_count, bool w
     h += "element vertex " + std::to_string(vertex_count) + "\n";
     h += "property float x\nproperty float y\nproperty float z\n";
     if (with_time) h += "property float t\n";
+    if (with_rgb) h += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    if (with_intensity) h += "property float intensity\n";
     if (with_faces) {
         h += "element face " + std::to_string(face_count) + "\n";
         h += "property list uchar int vertex_indices\n";
@@ -751,12 +788,36 @@ void write_ply_mesh(const fs::path& path, const TriangleMesh& mesh) {
             }
         }
     }
-    const std::string header =
-        header_text(nv, nf, /*with_faces=*/true, with_observed, mesh.origin_world_m);
+    const bool with_rgb = !mesh.vertex_rgb.empty();
+    const bool with_intensity = !mesh.vertex_intensity.empty();
+    const auto check_per_vertex = [&](std::size_t count, const char* what) {
+        if (count != nv) {
+            throw DataError("cannot write '" + path.string() + "': " + what + " has " +
+                            std::to_string(count) + " entries for " + std::to_string(nv) +
+                            " vertices (must be empty or one per vertex)");
+        }
+    };
+    if (with_rgb) check_per_vertex(mesh.vertex_rgb.size(), "vertex_rgb");
+    if (with_intensity) check_per_vertex(mesh.vertex_intensity.size(), "vertex_intensity");
+    const std::string header = header_text(nv, nf, /*with_faces=*/true, with_observed,
+                                           mesh.origin_world_m, false, with_rgb, with_intensity);
     const std::size_t face_bytes = 1 + 3 * sizeof(std::int32_t) + (with_observed ? 1 : 0);
-    std::string buffer(header.size() + nv * 3 * sizeof(float) + nf * face_bytes, '\0');
+    const std::size_t vertex_bytes =
+        3 * sizeof(float) + (with_rgb ? 3 : 0) + (with_intensity ? sizeof(float) : 0);
+    std::string buffer(header.size() + nv * vertex_bytes + nf * face_bytes, '\0');
     std::memcpy(buffer.data(), header.data(), header.size());
-    char* out = put_vertices(buffer.data() + header.size(), mesh.vertices);
+    char* out = buffer.data() + header.size();
+    if (!with_rgb && !with_intensity) {
+        out = put_vertices(out, mesh.vertices);
+    } else {
+        for (std::size_t v = 0; v < nv; ++v) {
+            for (int a = 0; a < 3; ++a) out = put_le(out, mesh.vertices[v][a]);
+            if (with_rgb) {
+                for (int c = 0; c < 3; ++c) *out++ = static_cast<char>(mesh.vertex_rgb[v][c]);
+            }
+            if (with_intensity) out = put_le(out, mesh.vertex_intensity[v]);
+        }
+    }
     for (std::size_t t = 0; t < nf; ++t) {
         *out++ = 3;
         for (int k = 0; k < 3; ++k) out = put_le<std::int32_t>(out, mesh.triangles[t][k]);

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -21,6 +22,12 @@ struct TriangleMesh {
     std::vector<Eigen::Vector3f> vertices;  ///< relative to origin_world_m
     std::vector<Eigen::Vector3i> triangles;
     std::vector<std::uint8_t> face_observed;
+    /// Optional per-vertex appearance (empty, or one entry per vertex): the surface's colour
+    /// (8-bit sRGB, fused from camera images) and the LiDAR's reflectance as the sensor gives it
+    /// (NaN where no scan measured it). PLY files carry them as vertex properties red, green,
+    /// blue (uchar) and intensity (float).
+    std::vector<std::array<std::uint8_t, 3>> vertex_rgb;
+    std::vector<float> vertex_intensity;
     Eigen::Vector3d origin_world_m = Eigen::Vector3d::Zero();  ///< world position of the frame
 
     bool empty() const { return triangles.empty(); }

@@ -26,8 +26,10 @@ namespace shine {
 
 /// Reads a triangle mesh (vertex x y z; face vertex_indices or vertex_index, polygons
 /// fan-triangulated, faces with fewer than 3 corners dropped; optional scalar face property
-/// `observed`, copied to every triangle of its polygon as 0/1; origin_world_m from the
-/// shine_origin_world_m comment, else zero). Other properties and elements are
+/// `observed`, copied to every triangle of its polygon as 0/1; vertex_rgb from scalar vertex
+/// properties red, green and blue (all three; values clamped to 0..255), vertex_intensity from
+/// `intensity`; origin_world_m from the shine_origin_world_m comment, else zero). Other
+/// properties and elements are
 /// skipped. A file without faces gives an empty triangle list. Throws IoError on a missing,
 /// empty, truncated or malformed file, on element counts larger than the file can hold (checked
 /// before allocating), on non-finite vertex coordinates and on out-of-range vertex indices.
@@ -38,8 +40,10 @@ TriangleMesh parse_ply_mesh(std::string_view data, const std::filesystem::path& 
 
 /// Writes a binary little-endian PLY atomically (temporary file + rename) from one buffer. Writes
 /// the uchar `observed` face property when mesh.face_observed is non-empty, and the
-/// shine_origin_world_m comment when mesh.origin_world_m is not zero. Throws DataError if
-/// face_observed has the wrong size or a triangle refers to a missing vertex.
+/// shine_origin_world_m comment when mesh.origin_world_m is not zero, and the vertex properties
+/// uchar red, green, blue and float intensity when mesh.vertex_rgb / vertex_intensity are
+/// non-empty. Throws DataError if face_observed or a vertex attribute has the wrong size or a
+/// triangle refers to a missing vertex.
 void write_ply_mesh(const std::filesystem::path& path, const TriangleMesh& mesh);
 
 /// Writes a mesh too large to hold in memory piece by piece, as the same binary PLY as
