@@ -219,6 +219,13 @@ def check_function_import(coloured: ColouredMap, voxel_size_m: float) -> None:
     expect(again.data.materials[0] == material and ours == ["ShineVDB colour"],
            f"a second import made another material: {ours}")
 
+    # Adaptivity moves and merges vertices: the nearest values anyway, and a warning counting
+    # the vertices that do not coincide with mesh.ply's.
+    mesh_object, messages = import_with_messages(coloured.surface, verify=False, adaptivity=0.5)
+    expect(any("farther than 0.1 voxel" in text for text in warnings_of(messages))
+           and "Col" in mesh_object.data.attributes,
+           f"adaptivity 0.5: expected colours and a warning about far vertices: {messages}")
+
     # A live modifier cannot hold attributes: a warning, and the mesh as before.
     mesh_object, messages = import_with_messages(coloured.surface, verify=False,
                                                  apply_modifier=False)
@@ -278,6 +285,19 @@ def check_unusable_mesh_ply(coloured: ColouredMap, fixture: str, work_dir: str) 
     expect(len(warnings_of(messages)) == 1 and "truncated" in warnings_of(messages)[0],
            f"no warning for a truncated coloured mesh.ply: {messages}")
     expect_no_colours(mesh_object, "truncated beside a plain .vdb")
+
+    # Intensity alone: the attribute, no colour attribute or material, no warning.
+    folder = os.path.join(work_dir, "intensity_only")
+    os.makedirs(folder)
+    shutil.copyfile(os.path.join(fixture, "surface.vdb"), os.path.join(folder, "surface.vdb"))
+    support.write_ply(os.path.join(folder, "mesh.ply"), coloured.vertices, coloured.triangles,
+                      (("intensity", coloured.expected(coloured.vertices)[3]),))
+    mesh_object, messages = import_with_messages(os.path.join(folder, "surface.vdb"),
+                                                 verify=False)
+    attributes = mesh_object.data.attributes
+    expect(not warnings_of(messages) and "intensity" in attributes and "Col" not in attributes
+           and len(mesh_object.data.materials) == 0,
+           f"intensity only: {list(attributes.keys())}, {messages}")
 
     folder = os.path.join(work_dir, "coloured_ply_plain_vdb")
     os.makedirs(folder)
