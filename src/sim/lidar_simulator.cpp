@@ -230,21 +230,37 @@ void validate(const SimulationConfig& config) {
     validate(scene);
 }
 
+StreetSceneConfig simulation_scene_config(const SimulationConfig& config) {
+    StreetSceneConfig scene_config = config.scene;
+    scene_config.seed = config.seed;
+    const double drive_length_m = (config.num_frames - 1) * config.trajectory.frame_spacing_m;
+    scene_config.start_x_m = -config.scene_margin_m;
+    scene_config.length_m = drive_length_m + 2.0 * config.scene_margin_m;
+    return scene_config;
+}
+
+std::vector<Eigen::Isometry3d> simulation_poses(const SimulationConfig& config) {
+    return make_drive_trajectory(config.trajectory, config.num_frames,
+                                 derive_seed(config.seed, kTrajectory));
+}
+
+MoverTracks simulation_movers(const SimulationConfig& config) {
+    if (config.movers.num_movers <= 0) return {};
+    const double drive_length_m = (config.num_frames - 1) * config.trajectory.frame_spacing_m;
+    return make_street_movers(config.movers, simulation_scene_config(config), drive_length_m,
+                              config.num_frames, derive_seed(config.seed, kMovers));
+}
+
 SimulationSummary simulate_sequence(const SimulationConfig& config,
                                     const std::filesystem::path& out_dir) {
     namespace fs = std::filesystem;
     validate(config);
     const auto start = std::chrono::steady_clock::now();
 
-    StreetSceneConfig scene_config = config.scene;
-    scene_config.seed = config.seed;
-    const double drive_length_m = (config.num_frames - 1) * config.trajectory.frame_spacing_m;
-    scene_config.start_x_m = -config.scene_margin_m;
-    scene_config.length_m = drive_length_m + 2.0 * config.scene_margin_m;
+    const StreetSceneConfig scene_config = simulation_scene_config(config);
     StreetScene scene = make_street_scene(scene_config);
     const RayCaster caster(scene.mesh);
-    const std::vector<Eigen::Isometry3d> poses = make_drive_trajectory(
-        config.trajectory, config.num_frames, derive_seed(config.seed, kTrajectory));
+    const std::vector<Eigen::Isometry3d> poses = simulation_poses(config);
 
     const fs::path velodyne_dir = out_dir / "velodyne";
     // Remove scans of an earlier, longer run so that scans and poses.txt stay consistent. With
@@ -281,10 +297,8 @@ SimulationSummary simulate_sequence(const SimulationConfig& config,
     const auto noise_seed = [&](int frame) {
         return derive_seed(config.seed, kNoise + static_cast<std::uint64_t>(frame));
     };
-    MoverTracks movers;
+    const MoverTracks movers = simulation_movers(config);
     if (config.movers.num_movers > 0) {
-        movers = make_street_movers(config.movers, scene_config, drive_length_m, config.num_frames,
-                                    derive_seed(config.seed, kMovers));
         // Movers are placed in the simulation's frame, like the reference mesh's vertices.
         const MovingScene moving(caster, movers);
         sequence_internal::simulate_and_write_scans(

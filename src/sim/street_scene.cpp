@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <utility>
 
 #include "shine/core/error.hpp"
 #include "shine/sim/mesh_primitives.hpp"
@@ -33,10 +34,11 @@ struct PendingPart {
 class SceneAssembler {
   public:
     std::size_t begin_object() { return next_object_++; }
-    void add(SceneObjectKind kind, std::size_t object, TriangleMesh mesh, bool closed = true,
-             bool needs_refinement = true) {
+    void add(SceneObjectKind kind, ScenePartSurface surface, std::size_t object, TriangleMesh mesh,
+             bool closed = true, bool needs_refinement = true) {
         PendingPart part;
         part.info.kind = kind;
+        part.info.surface = surface;
         part.info.object_index = object;
         part.info.closed = closed;
         part.mesh = std::move(mesh);
@@ -141,7 +143,7 @@ std::vector<std::vector<Eigen::Vector2f>> add_buildings(const StreetSceneConfig&
         };
         auto add_prism = [&](std::size_t object, const std::vector<Eigen::Vector2f>& footprint,
                              double z0, double z1) {
-            scene.add(SceneObjectKind::kBuilding, object,
+            scene.add(SceneObjectKind::kBuilding, ScenePartSurface::kBuildingBlock, object,
                       make_grid_prism_mesh(footprint, static_cast<float>(z0),
                                            static_cast<float>(z1), max_edge));
         };
@@ -198,7 +200,8 @@ std::vector<std::vector<Eigen::Vector2f>> add_buildings(const StreetSceneConfig&
                     Eigen::Vector3f(static_cast<float>(x), static_cast<float>(side * y_front),
                                     static_cast<float>(top_z) - kSink_m);
                 transform_mesh(roof, T);
-                scene.add(SceneObjectKind::kBuilding, object, std::move(roof));
+                scene.add(SceneObjectKind::kBuilding, ScenePartSurface::kGableRoof, object,
+                          std::move(roof));
                 top_local.clear();  // no roof boxes on a gable roof
             }
         }
@@ -219,7 +222,7 @@ std::vector<std::vector<Eigen::Vector2f>> add_buildings(const StreetSceneConfig&
                     fits = fits && inside_polygon(top_world, corner.x(), corner.y());
                 }
                 if (!fits) continue;
-                scene.add(SceneObjectKind::kBuilding, object,
+                scene.add(SceneObjectKind::kBuilding, ScenePartSurface::kRoofBox, object,
                           make_grid_box_mesh({std::min(a.x(), b.x()), std::min(a.y(), b.y()),
                                               static_cast<float>(top_z) - kSink_m},
                                              {std::max(a.x(), b.x()), std::max(a.y(), b.y()),
@@ -264,7 +267,7 @@ void add_car(double center_x, double center_y, double yaw_rad, float max_edge, R
         yaw_then_translate(yaw_rad, Eigen::Vector3d(center_x, center_y, 0.0));
     transform_mesh(body, T_world_car * T_car_prism);
     const std::size_t object = scene.begin_object();
-    scene.add(SceneObjectKind::kCar, object, std::move(body));
+    scene.add(SceneObjectKind::kCar, ScenePartSurface::kCarBody, object, std::move(body));
     const float radius = static_cast<float>(van ? 0.36 : 0.32);
     const float wheel_width = 0.22f;
     for (const double wx : {-L / 2 + 0.85, L / 2 - 0.85}) {
@@ -276,7 +279,7 @@ void add_car(double center_x, double center_y, double yaw_rad, float max_edge, R
             T_car_wheel.translation() = Eigen::Vector3f(
                 static_cast<float>(wx), static_cast<float>(y_inner), radius - 0.02f);
             transform_mesh(wheel, T_world_car * T_car_wheel);
-            scene.add(SceneObjectKind::kCar, object, std::move(wheel));
+            scene.add(SceneObjectKind::kCar, ScenePartSurface::kCarWheel, object, std::move(wheel));
         }
     }
 }
@@ -288,7 +291,7 @@ void add_tree(double x, double y, double ground_z, double trunk_radius, float ma
     TriangleMesh trunk = make_grid_cylinder_mesh(
         static_cast<float>(trunk_radius), static_cast<float>(trunk_height + kSink_m), max_edge);
     transform_mesh(trunk, yaw_then_translate(0.0, Eigen::Vector3d(x, y, ground_z - kSink_m)));
-    scene.add(SceneObjectKind::kTree, object, std::move(trunk));
+    scene.add(SceneObjectKind::kTree, ScenePartSurface::kTreeTrunk, object, std::move(trunk));
     const double radius_xy = rng.uniform(1.2, 2.4);
     const double radius_z = rng.uniform(1.2, 2.6);
     TriangleMesh crown =
@@ -300,7 +303,7 @@ void add_tree(double x, double y, double ground_z, double trunk_radius, float ma
     transform_mesh(
         crown, yaw_then_translate(rng.uniform(0.0, M_PI),
                                   Eigen::Vector3d(x, y, ground_z + trunk_height + 0.6 * radius_z)));
-    scene.add(SceneObjectKind::kTree, object, std::move(crown));
+    scene.add(SceneObjectKind::kTree, ScenePartSurface::kTreeCrown, object, std::move(crown));
 }
 
 void add_pole(double x, double y, double ground_z, int side, double radius, float max_edge,
@@ -310,7 +313,7 @@ void add_pole(double x, double y, double ground_z, int side, double radius, floa
     TriangleMesh pole = make_grid_cylinder_mesh(static_cast<float>(radius),
                                                 static_cast<float>(height + kSink_m), max_edge);
     transform_mesh(pole, yaw_then_translate(0.0, Eigen::Vector3d(x, y, ground_z - kSink_m)));
-    scene.add(SceneObjectKind::kPole, object, std::move(pole));
+    scene.add(SceneObjectKind::kPole, ScenePartSurface::kPoleMast, object, std::move(pole));
     if (rng.chance(0.5)) {
         // Street lamp: an arm reaching over the road and a lamp head.
         const double top = ground_z + height;
@@ -318,13 +321,13 @@ void add_pole(double x, double y, double ground_z, int side, double radius, floa
         const double y_end = y - side * arm;
         const auto lo = [](double a, double b) { return static_cast<float>(std::min(a, b)); };
         const auto hi = [](double a, double b) { return static_cast<float>(std::max(a, b)); };
-        scene.add(SceneObjectKind::kPole, object,
+        scene.add(SceneObjectKind::kPole, ScenePartSurface::kLampArm, object,
                   make_grid_box_mesh(
                       {static_cast<float>(x - 0.05), lo(y, y_end), static_cast<float>(top - 0.32)},
                       {static_cast<float>(x + 0.05), hi(y, y_end), static_cast<float>(top - 0.2)},
                       max_edge));
         const double head_y0 = y_end, head_y1 = y_end + side * 0.55;
-        scene.add(SceneObjectKind::kPole, object,
+        scene.add(SceneObjectKind::kPole, ScenePartSurface::kLampHead, object,
                   make_grid_box_mesh({static_cast<float>(x - 0.14), lo(head_y0, head_y1),
                                       static_cast<float>(top - 0.45)},
                                      {static_cast<float>(x + 0.14), hi(head_y0, head_y1),
@@ -345,9 +348,13 @@ void add_pedestrian(double x, double y, double ground_z, float max_edge, Rng& rn
                                             s * Eigen::Vector3f(0.13f, 0.21f, 1.46f), max_edge);
     TriangleMesh head = make_ellipsoid_mesh(s * Eigen::Vector3f(0.1f, 0.09f, 0.13f), 1);
     for (auto& v : head.vertices) v.z() += s * 1.59f;  // top of the head at s * 1.72 m
-    for (TriangleMesh* part : {&legs, &torso, &head}) {
+    const std::pair<TriangleMesh*, ScenePartSurface> parts[] = {
+        {&legs, ScenePartSurface::kPedestrianLegs},
+        {&torso, ScenePartSurface::kPedestrianTorso},
+        {&head, ScenePartSurface::kPedestrianHead}};
+    for (const auto& [part, surface] : parts) {
         transform_mesh(*part, T);
-        scene.add(SceneObjectKind::kPedestrian, object, std::move(*part));
+        scene.add(SceneObjectKind::kPedestrian, surface, object, std::move(*part));
     }
 }
 
@@ -448,6 +455,40 @@ std::string to_string(SceneObjectKind kind) {
             return "pole";
         case SceneObjectKind::kPedestrian:
             return "pedestrian";
+    }
+    return "unknown";
+}
+
+std::string to_string(ScenePartSurface surface) {
+    switch (surface) {
+        case ScenePartSurface::kGround:
+            return "ground";
+        case ScenePartSurface::kBuildingBlock:
+            return "building block";
+        case ScenePartSurface::kGableRoof:
+            return "gable roof";
+        case ScenePartSurface::kRoofBox:
+            return "roof box";
+        case ScenePartSurface::kCarBody:
+            return "car body";
+        case ScenePartSurface::kCarWheel:
+            return "car wheel";
+        case ScenePartSurface::kTreeTrunk:
+            return "tree trunk";
+        case ScenePartSurface::kTreeCrown:
+            return "tree crown";
+        case ScenePartSurface::kPoleMast:
+            return "pole mast";
+        case ScenePartSurface::kLampArm:
+            return "lamp arm";
+        case ScenePartSurface::kLampHead:
+            return "lamp head";
+        case ScenePartSurface::kPedestrianLegs:
+            return "pedestrian legs";
+        case ScenePartSurface::kPedestrianTorso:
+            return "pedestrian torso";
+        case ScenePartSurface::kPedestrianHead:
+            return "pedestrian head";
     }
     return "unknown";
 }
@@ -583,7 +624,7 @@ StreetScene make_street_scene(const StreetSceneConfig& config) {
             }
         }
     }
-    scene.add(SceneObjectKind::kGround, ground_object,
+    scene.add(SceneObjectKind::kGround, ScenePartSurface::kGround, ground_object,
               make_ground(layout, config.max_edge_length_m, footprints), /*closed=*/false,
               /*needs_refinement=*/false);
 

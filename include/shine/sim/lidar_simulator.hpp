@@ -113,6 +113,17 @@ struct SimulationConfig {
 /// Throws ConfigError naming the field if any value (including nested configs) is out of range.
 void validate(const SimulationConfig& config);
 
+/// The street simulate_sequence builds for `config`: config.scene with the seed, start_x_m and
+/// length_m that cover the drive and its margins.
+StreetSceneConfig simulation_scene_config(const SimulationConfig& config);
+
+/// The drive's sensor poses T_world_sensor, one per scan, in the simulation's frame (the frame of
+/// the reference mesh's vertices: without origin_offset_world_m).
+std::vector<Eigen::Isometry3d> simulation_poses(const SimulationConfig& config);
+
+/// The movers the scans see (no movers without movers.num_movers > 0), in the simulation's frame.
+MoverTracks simulation_movers(const SimulationConfig& config);
+
 /// What simulate_sequence produced.
 struct SimulationSummary {
     int num_frames = 0;

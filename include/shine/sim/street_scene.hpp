@@ -47,10 +47,33 @@ enum class SceneObjectKind { kGround, kBuilding, kTree, kCar, kPole, kPedestrian
 /// Name of a kind ("ground", "building", ...).
 std::string to_string(SceneObjectKind kind);
 
+/// What one part of an object is, finer than its kind: what its surface looks like (its colour,
+/// sim/scene_albedo.hpp). Recorded while the scene is built; the geometry does not depend on it.
+enum class ScenePartSurface : std::uint8_t {
+    kGround,           ///< road, curbs, sidewalks and lots: one open surface
+    kBuildingBlock,    ///< a building's prism: walls and a flat roof
+    kGableRoof,        ///< a gable roof on a building block
+    kRoofBox,          ///< a plant room, vent or stair house on a flat roof
+    kCarBody,          ///< a parked car's body
+    kCarWheel,         ///< one of its wheels
+    kTreeTrunk,        ///< a tree's trunk
+    kTreeCrown,        ///< a tree's crown
+    kPoleMast,         ///< a pole's or street lamp's mast
+    kLampArm,          ///< a street lamp's arm over the road
+    kLampHead,         ///< a street lamp's head
+    kPedestrianLegs,   ///< a pedestrian's legs
+    kPedestrianTorso,  ///< a pedestrian's torso and arms
+    kPedestrianHead,   ///< a pedestrian's head
+};
+
+/// Name of a part surface ("ground", "building block", ...).
+std::string to_string(ScenePartSurface surface);
+
 /// A contiguous range of the scene's triangles forming one surface: the ground (open) or one
 /// closed part of an object (a building block, a roof box, a trunk, a crown, a wheel, ...).
 struct ScenePart {
     SceneObjectKind kind = SceneObjectKind::kGround;
+    ScenePartSurface surface = ScenePartSurface::kGround;  ///< what this part of the object is
     std::size_t object_index = 0;  ///< parts of one object (a tree's trunk and crown) share it
     std::size_t first_triangle = 0;
     std::size_t num_triangles = 0;
