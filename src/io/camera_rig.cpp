@@ -235,8 +235,9 @@ Kitti360Rectification parse_kitti360_perspective(std::string_view text, const fs
     }
     out.t_rect = K.inverse() * Pm.col(3);
     if (!out.t_rect.allFinite()) {
-        fail_kitti360(source, "P_rect_00's 4th column over its focal lengths is not finite; "
-                              "expected KITTI-360's rectified P_rect_00, row-major 3x4");
+        fail_kitti360(source,
+                      "P_rect_00's 4th column over its focal lengths is not finite; "
+                      "expected KITTI-360's rectified P_rect_00, row-major 3x4");
     }
     return out;
 }
