@@ -1,7 +1,8 @@
 // `shine simulate`: writes the example data set — a procedural street scanned by a simulated
 // 64-beam spinning LiDAR — in the KITTI layout, with the reference mesh for evaluation; with
 // --route-km, a long drive through a procedural city instead; with --pose-noise-m/-deg, the poses
-// written with noise and the true ones beside them (for pose refinement).
+// written with noise and the true ones beside them (for pose refinement); with --cameras, a front
+// camera's image of the street's true colours per scan (for colour fusion).
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -18,6 +19,7 @@
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/io/kitti.hpp"
+#include "shine/sim/camera_simulator.hpp"
 #include "shine/sim/lidar_simulator.hpp"
 #include "shine/sim/object_simulation.hpp"
 #include "shine/sim/pose_noise.hpp"
@@ -39,6 +41,7 @@ struct SimulateOptions {
     bool max_range_given = false;      ///< --max-range-m was given
     bool max_edge_given = false;       ///< --max-edge-m was given
     sim::PoseNoiseConfig pose_noise;   ///< --pose-noise-m/-deg; its seed is --seed
+    bool cameras = false;              ///< --cameras: a front camera's images beside the scans
 };
 
 /// `--scene object`: the turntable scan (object_simulation.hpp) with this run's seed, noise and
@@ -146,6 +149,29 @@ std::string json_number(double value) {
     return buffer;
 }
 
+/// --cameras: the front camera's images of the street (sim/camera_simulator.hpp) and a README.txt
+/// entry.
+void write_cameras(const std::filesystem::path& out_dir, const sim::SimulationConfig& config) {
+    const sim::CameraConfig camera;
+    const sim::CameraSequenceSummary summary =
+        sim::simulate_street_cameras(config, camera, out_dir);
+    const std::filesystem::path readme_path = out_dir / "README.txt";
+    const std::string readme = read_file(readme_path);
+    write_stream_atomically(readme_path, [&](std::ostream& out) {
+        out << readme << "cameras/front/       camera.yaml: a " << camera.width << " x "
+            << camera.height << " pinhole (fx " << camera.fx << ", fy " << camera.fy
+            << ", no distortion) and T_lidar_camera;\n"
+            << "                     NNNNNN.png: scan NNNNNN's image of the scene's true "
+               "colours (albedo,\n"
+            << "                     sim/scene_albedo.hpp) from the scan's pose, movers where "
+               "they are at its start\n";
+    });
+    std::printf(
+        "cameras/front: camera.yaml and %d images of %d x %d pixels of the street's true colours, "
+        "one per scan (NNNNNN.png), in %.1f s\n",
+        summary.num_images, camera.width, camera.height, summary.seconds);
+}
+
 /// Rejects a negative or non-finite --pose-noise-m / --pose-noise-deg before anything is simulated.
 void check_pose_noise_flag(double value, const char* flag, const char* what) {
     if (!(std::isfinite(value) && value >= 0.0)) {
@@ -246,6 +272,11 @@ int simulate_scans(const SimulateOptions& options) {
             "--motion-distortion moves the sensor during each sweep of the street's drive: it "
             "cannot be combined with --scene object or --route-km");
     }
+    if (options.cameras && (options.scene == "object" || options.route_requested)) {
+        throw ConfigError(
+            "--cameras renders the street's scans (a front camera per scan): it cannot be "
+            "combined with --scene object or --route-km yet; simulate the street without them");
+    }
     if (c.movers.num_movers > 0 && options.scene == "object") {
         throw ConfigError(
             "--movers puts cars, cyclists and pedestrians on the street: it cannot "
@@ -275,6 +306,7 @@ int simulate_scans(const SimulateOptions& options) {
         options.out_dir.c_str(), summary.num_frames, movers.c_str(), distortion.c_str(),
         summary.total_points, summary.min_points_per_scan, summary.max_points_per_scan,
         summary.num_triangles, summary.num_observed_triangles, summary.seconds);
+    if (options.cameras) write_cameras(options.out_dir, config);
     return 0;
 }
 
@@ -282,6 +314,12 @@ int run_simulate(const SimulateOptions& options) {
     check_pose_noise_flag(options.pose_noise.translation_sigma_m, "--pose-noise-m", "positions, m");
     check_pose_noise_flag(options.pose_noise.rotation_sigma_deg, "--pose-noise-deg",
                           "rotations, deg");
+    // Without --cameras, images an earlier run with --cameras left in the directory would be
+    // taken for this run's: they go.
+    if (!options.cameras && sim::remove_street_cameras(options.out_dir)) {
+        std::printf("removed %s, left by an earlier run with --cameras\n",
+                    sim::front_camera_dir(options.out_dir).c_str());
+    }
     const int exit_code = simulate_scans(options);
     sim::PoseNoiseConfig noise = options.pose_noise;
     noise.seed = options.config.seed;
@@ -298,7 +336,8 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
         "driving car. Writes DIR/velodyne/NNNNNN.bin (sensor frame), DIR/poses.txt "
         "(T_world_sensor), DIR/gt_mesh.ply (reference, observed faces marked), "
         "DIR/simulation.json. With --route-km: a long drive through a procedural city that ends "
-        "by driving its first street again (a loop closure).");
+        "by driving its first street again (a loop closure). With --cameras: a front camera's "
+        "image of the true colours per scan, DIR/cameras/front/NNNNNN.png and camera.yaml.");
     cmd->add_option("-o,--output", options->out_dir, "output directory (created if missing)")
         ->required();
     cmd->add_option("--scene", options->scene,
@@ -371,6 +410,12 @@ const RegisterCommand kSimulateCommand(10, [](CLI::App& app, Action& action) {
                     "whose axes are Gaussians of this standard deviation, deg (world axes, about "
                     "the sensor's position)")
         ->capture_default_str();
+    cmd->add_flag("--cameras", options->cameras,
+                  "also write a front camera's image of the street's true colours per scan: "
+                  "cameras/front/camera.yaml (640 x 240 pinhole 0.27 m ahead of and 0.08 m below "
+                  "the LiDAR, looking along its +x) and cameras/front/NNNNNN.png, the stem of "
+                  "each scan's file; movers are seen where they are at the scan's start "
+                  "(docs/simulated_cameras.md)");
     cmd->add_option("--threads", options->threads, "worker threads (0 = all cores)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
