@@ -13,6 +13,7 @@
 
 #include "cli_common.hpp"
 #include "command_registry.hpp"
+#include "map_appearance.hpp"
 #include "map_from.hpp"
 #include "product_stats.hpp"
 #include "saved_map.hpp"
@@ -506,6 +507,8 @@ int run_map(const MapOptions& given_options) {
          selected.has_poses())) {
         selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
     }
+    // Camera images colour the surface; a broken calibration is named before any mapping.
+    const std::optional<CameraRig> cameras = find_sequence_cameras(selected, opt.quiet || resuming);
     // --from: the old map, read before anything is written (a missing or damaged map is named
     // at once). Scans without poses (or with --poses estimate) are localised in it first and
     // mapped at those poses; with poses of their own, those are in its world frame.
@@ -728,6 +731,19 @@ int run_map(const MapOptions& given_options) {
             last.median_translation_m, last.median_rotation_deg, moved_m,
             (out / "poses_refined.txt").c_str());
     }
+    // Colour and reflectance, at the poses the map was made at.
+    nlohmann::json appearance_json;
+    {
+        ScanSequence mapped_final = sequence;
+        if (batch_map && !batch_map->refinement.empty()) {
+            mapped_final = scored.subset(split.mapped);
+        } else if (odometry_run) {
+            mapped_final = sequence.with_poses(odometry_run->odometry->poses());
+        } else if (incremental_map && incremental_map->odometry) {
+            mapped_final = sequence.with_poses(incremental_map->odometry->poses());
+        }
+        add_map_appearance(out, mapped_final, config, cameras, appearance_json);
+    }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();
     const double save_seconds = products.save_seconds;
@@ -876,6 +892,10 @@ int run_map(const MapOptions& given_options) {
                           heldout_poses_local_to_estimate(selected, split, odometry->poses())),
                       split, opt.holdout_every, config.preprocess, json, "heldout_local",
                       deskew ? &config.deskew : nullptr);
+    }
+    if (appearance_json.contains("appearance")) {
+        json["appearance"] = appearance_json["appearance"];
+        score_heldout_colours(out, scored, split, cameras, json);
     }
     json["peak_rss_bytes"] = peak_rss_bytes();
     write_json(out / "stats.json", json);

@@ -1,0 +1,71 @@
+// Colour and reflectance on a map's surface, added to the products of a mapped sequence: the
+// last step of `shine map` when the scans carry intensity or the sequence folder holds camera
+// images (io/camera_rig.hpp).
+//
+//   1. mesh.ply and surface.vdb are read back (the mesh is held whole here, unlike when meshing).
+//   2. Colour (with images): every mapped scan's images are placed at the scan's final pose (the
+//      refined one in batch mode) and the mesh is rasterised into each (MeshRaster); the mesh's
+//      vertices and the level set's surface points take the fused colour of the views that see
+//      them (colour_fusion.hpp: occlusion against the map's own surface). Vertices no camera saw
+//      take the mean colour of their coloured neighbours, ring by ring (up to fill_rings).
+//   3. Reflectance (scans with intensity): every mapped scan is read again, deskewed as for
+//      mapping, its points' intensities accumulated in voxels (reflectance_voxels.hpp) and read
+//      at the vertices and surface points.
+//   4. mesh.ply gets per-vertex red, green, blue and intensity; surface.vdb the grids "color" and
+//      "intensity" (surface_attribute_grids.hpp). Both are rewritten atomically.
+// A sequence with neither leaves the products untouched, byte for byte.
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <optional>
+
+#include "shine/colour/colour_fusion.hpp"
+#include "shine/io/camera_rig.hpp"
+#include "shine/io/scan_sequence.hpp"
+#include "shine/mapper/mapper_config.hpp"
+
+namespace shine {
+
+struct SurfaceAppearanceConfig {
+    ColourFusionConfig fusion;
+    int fill_rings = 20;  ///< neighbour rings an unseen vertex may take its colour from
+};
+
+/// What add_surface_appearance() did.
+struct SurfaceAppearanceStats {
+    bool colour = false;     ///< colour was fused (the folder had images of mapped scans)
+    bool intensity = false;  ///< reflectance was fused (the scans had intensity)
+    std::size_t views = 0;   ///< images fused
+    std::size_t vertices = 0;
+    std::size_t coloured_vertices = 0;  ///< seen by at least one camera
+    std::size_t filled_vertices = 0;    ///< coloured from their neighbours
+    std::size_t voxels = 0;             ///< active voxels of the level set
+    std::size_t coloured_voxels = 0;
+    std::size_t intensity_points = 0;    ///< scan points whose intensity was fused
+    std::size_t intensity_vertices = 0;  ///< vertices with a reflectance
+    std::size_t intensity_voxels = 0;
+    double seconds = 0.0;
+};
+
+/// Adds colour and reflectance to OUT_DIR/mesh.ply and OUT_DIR/surface.vdb (see the file
+/// comment) from the scans of `mapped` (at the poses the map was made at) and the cameras of
+/// `rig` (none: reflectance only). Does nothing when there are no images of those scans and no
+/// intensity. Throws IoError / DataError naming a broken image or file; the products are then
+/// left as they were.
+SurfaceAppearanceStats add_surface_appearance(const std::filesystem::path& out_dir,
+                                              const ScanSequence& mapped,
+                                              const MapperConfig& config,
+                                              const std::optional<CameraRig>& rig,
+                                              const SurfaceAppearanceConfig& appearance = {});
+
+/// Area-weighted unit vertex normals of `mesh` (zero for a vertex without triangles).
+std::vector<Eigen::Vector3d> vertex_normals(const TriangleMesh& mesh);
+
+/// Gives vertices of weight 0 the mean colour of their neighbours of weight > 0, ring by ring,
+/// at most `rings` times; returns how many were filled (their weight stays 0).
+std::size_t fill_unseen_colours(const TriangleMesh& mesh,
+                                std::vector<std::array<std::uint8_t, 3>>& rgb,
+                                const std::vector<float>& weight, int rings);
+
+}  // namespace shine

@@ -1,0 +1,204 @@
+#include "shine/mapper/surface_appearance.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <cmath>
+
+#include "shine/bake/level_set_file.hpp"
+#include "shine/bake/surface_attribute_grids.hpp"
+#include "shine/colour/camera_view.hpp"
+#include "shine/colour/mesh_raster.hpp"
+#include "shine/colour/reflectance_voxels.hpp"
+#include "shine/core/stopwatch.hpp"
+#include "shine/io/ply.hpp"
+#include "shine/mapper/sequence_deskew.hpp"
+
+namespace shine {
+namespace fs = std::filesystem;
+
+std::vector<Eigen::Vector3d> vertex_normals(const TriangleMesh& mesh) {
+    std::vector<Eigen::Vector3d> normals(mesh.vertices.size(), Eigen::Vector3d::Zero());
+    for (const Eigen::Vector3i& t : mesh.triangles) {
+        const Eigen::Vector3d a = mesh.vertices[t[0]].cast<double>();
+        const Eigen::Vector3d n =
+            (mesh.vertices[t[1]].cast<double>() - a).cross(mesh.vertices[t[2]].cast<double>() - a);
+        for (int k = 0; k < 3; ++k) normals[t[k]] += n;  // |n| = twice the area
+    }
+    for (Eigen::Vector3d& n : normals) {
+        const double length = n.norm();
+        n = length > 0.0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
+    }
+    return normals;
+}
+
+std::size_t fill_unseen_colours(const TriangleMesh& mesh,
+                                std::vector<std::array<std::uint8_t, 3>>& rgb,
+                                const std::vector<float>& weight, int rings) {
+    std::vector<std::uint8_t> known(weight.size());
+    for (std::size_t i = 0; i < weight.size(); ++i) known[i] = weight[i] > 0.0f;
+    std::size_t filled = 0;
+    for (int ring = 0; ring < rings; ++ring) {
+        std::vector<Eigen::Vector3d> sum(rgb.size(), Eigen::Vector3d::Zero());
+        std::vector<std::uint32_t> count(rgb.size(), 0);
+        for (const Eigen::Vector3i& t : mesh.triangles) {
+            for (int k = 0; k < 3; ++k) {
+                const int to = t[k];
+                if (known[to]) continue;
+                for (int j = 1; j <= 2; ++j) {
+                    const int from = t[(k + j) % 3];
+                    if (!known[from]) continue;
+                    sum[to] += Eigen::Vector3d(rgb[from][0], rgb[from][1], rgb[from][2]);
+                    ++count[to];
+                }
+            }
+        }
+        std::size_t added = 0;
+        for (std::size_t i = 0; i < rgb.size(); ++i) {
+            if (count[i] == 0) continue;
+            const Eigen::Vector3d mean = sum[i] / count[i];
+            for (int c = 0; c < 3; ++c) rgb[i][c] = static_cast<std::uint8_t>(std::lround(mean[c]));
+            known[i] = 1;
+            ++added;
+        }
+        filled += added;
+        if (added == 0) break;
+    }
+    return filled;
+}
+
+namespace surface_appearance_internal {
+namespace {
+
+/// The map-frame points of every mapped scan with their intensities, accumulated in voxels.
+ReflectanceVoxels accumulate_reflectance(const ScanSequence& mapped, const MapperConfig& config,
+                                         const Eigen::Vector3d& origin_world_m, double voxel_m) {
+    ReflectanceVoxels voxels(voxel_m);
+    const bool deskew =
+        deskew_active(config.deskew, config.odometry.estimate_poses, mapped.has_sweep_times());
+    DeskewStats ignored;
+    const double min_range_m = config.preprocess.min_range_m;
+    const double max_range_m = config.preprocess.max_range_m;
+    for (std::size_t i = 0; i < mapped.size(); ++i) {
+        Scan scan = mapped.load(i);
+        if (scan.intensity.empty()) continue;
+        if (deskew) deskew_with_sequence_poses(scan, mapped, i, config.deskew, ignored);
+        std::vector<Eigen::Vector3d> points;
+        std::vector<float> intensity;
+        points.reserve(scan.points_sensor.size());
+        intensity.reserve(scan.points_sensor.size());
+        for (std::size_t k = 0; k < scan.points_sensor.size(); ++k) {
+            const Eigen::Vector3d p = scan.points_sensor[k].cast<double>();
+            const double range_m = p.norm();
+            if (!std::isfinite(range_m) || range_m < min_range_m || range_m > max_range_m) continue;
+            Eigen::Vector3d p_map = scan.T_world_sensor * p;
+            p_map -= origin_world_m;
+            points.push_back(p_map);
+            intensity.push_back(scan.intensity[k]);
+        }
+        voxels.add(points, intensity);
+    }
+    return voxels;
+}
+
+}  // namespace
+}  // namespace surface_appearance_internal
+
+SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const ScanSequence& mapped,
+                                              const MapperConfig& config,
+                                              const std::optional<CameraRig>& rig,
+                                              const SurfaceAppearanceConfig& appearance) {
+    using namespace surface_appearance_internal;
+    const auto start = std::chrono::steady_clock::now();
+    SurfaceAppearanceStats stats;
+    if (mapped.size() == 0) return stats;
+    // Is there anything to fuse? Images of mapped scans, or intensity in the first scan.
+    std::vector<fs::path> scan_paths;
+    std::vector<Eigen::Isometry3d> poses;
+    std::vector<std::size_t> indices;
+    bool any_image = false;
+    for (std::size_t i = 0; i < mapped.size(); ++i) {
+        scan_paths.push_back(mapped.scan_path(i));
+        poses.push_back(mapped.pose(i));
+        indices.push_back(i);
+        if (rig) {
+            for (std::size_t c = 0; c < rig->cameras.size(); ++c) {
+                any_image = any_image || !rig->image_for_scan(c, scan_paths.back()).empty();
+            }
+        }
+    }
+    const bool any_intensity = !mapped.load(0).intensity.empty();
+    if (!any_image && !any_intensity) return stats;
+
+    const fs::path mesh_path = out_dir / "mesh.ply";
+    const fs::path surface_path = out_dir / "surface.vdb";
+    TriangleMesh mesh = read_ply_mesh(mesh_path);
+    openvdb::FloatGrid::Ptr level_set = read_level_set(surface_path);
+    const LevelSetSurfacePoints surface = level_set_surface_points(*level_set);
+    stats.vertices = mesh.vertices.size();
+    stats.voxels = surface.voxels.size();
+    openvdb::GridPtrVec extra;
+
+    if (any_image) {
+        const std::vector<CameraView> views =
+            load_camera_views(*rig, scan_paths, poses, mesh.origin_world_m, indices);
+        std::vector<MeshRaster> rasters;
+        rasters.reserve(views.size());
+        for (const CameraView& view : views) {
+            rasters.push_back(
+                rasterize_mesh(mesh, view.camera, view.T_map_camera, appearance.fusion.near_m));
+        }
+        std::vector<Eigen::Vector3d> vertices(mesh.vertices.size());
+        for (std::size_t i = 0; i < vertices.size(); ++i)
+            vertices[i] = mesh.vertices[i].cast<double>();
+        FusedColours at_vertices =
+            fuse_colours(vertices, vertex_normals(mesh), views, rasters, appearance.fusion);
+        stats.filled_vertices =
+            fill_unseen_colours(mesh, at_vertices.rgb, at_vertices.weight, appearance.fill_rings);
+        mesh.vertex_rgb = std::move(at_vertices.rgb);
+        stats.coloured_vertices = at_vertices.coloured;
+        const FusedColours at_voxels = fuse_colours(surface.points_map, surface.normals_map, views,
+                                                    rasters, appearance.fusion);
+        stats.coloured_voxels = at_voxels.coloured;
+        extra.push_back(
+            make_color_grid(*level_set, surface.voxels, at_voxels.rgb, at_voxels.weight));
+        stats.views = views.size();
+        stats.colour = true;
+    }
+    if (any_intensity) {
+        const double voxel_m = level_set->transform().voxelSize()[0];
+        const ReflectanceVoxels reflectance =
+            accumulate_reflectance(mapped, config, mesh.origin_world_m, voxel_m);
+        stats.intensity_points = reflectance.num_points();
+        if (!reflectance.empty()) {
+            mesh.vertex_intensity.resize(mesh.vertices.size());
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.vertices.size(), 4096),
+                              [&](const tbb::blocked_range<std::size_t>& r) {
+                                  for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                                      mesh.vertex_intensity[i] =
+                                          reflectance.at(mesh.vertices[i].cast<double>());
+                                  }
+                              });
+            std::vector<float> at_voxels(surface.points_map.size());
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, at_voxels.size(), 4096),
+                              [&](const tbb::blocked_range<std::size_t>& r) {
+                                  for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                                      at_voxels[i] = reflectance.at(surface.points_map[i]);
+                                  }
+                              });
+            for (const float v : mesh.vertex_intensity)
+                stats.intensity_vertices += std::isfinite(v);
+            for (const float v : at_voxels) stats.intensity_voxels += std::isfinite(v);
+            extra.push_back(make_intensity_grid(*level_set, surface.voxels, at_voxels));
+            stats.intensity = true;
+        }
+    }
+    if (!stats.colour && !stats.intensity) return stats;
+    write_surface_grids(surface_path, level_set, extra);
+    write_ply_mesh(mesh_path, mesh);
+    stats.seconds = seconds_since(start);
+    return stats;
+}
+
+}  // namespace shine
