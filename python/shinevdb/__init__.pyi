@@ -9,10 +9,27 @@ import numpy.typing as npt
 FloatArray = Union[npt.NDArray[np.float32], npt.NDArray[np.float64]]
 """float32 or float64; any strides (read in place)."""
 PathLike = Union[str, os.PathLike]
-Mesh = Tuple[npt.NDArray[np.float64], npt.NDArray[np.int32]]
+MeshArrays = Tuple[npt.NDArray[np.float64], npt.NDArray[np.int32]]
 """(vertices (V, 3) float64 world frame, triangles (T, 3) int32)."""
+class Mesh:
+    """A triangle mesh with its per-vertex colour and reflectance, when it has them."""
+
+    @property
+    def vertices(self) -> npt.NDArray[np.float64]:
+        """(V, 3) world frame, metres."""
+    @property
+    def triangles(self) -> npt.NDArray[np.int32]:
+        """(T, 3) vertex indices."""
+    @property
+    def colors(self) -> Optional[npt.NDArray[np.uint8]]:
+        """(V, 3) 8-bit sRGB; (0, 0, 0) where no camera saw; None without colour."""
+    @property
+    def intensity(self) -> Optional[npt.NDArray[np.float32]]:
+        """(V,) reflectance as the scans give it; NaN where unknown; None without it."""
+
 MeshInput = Union[
     PathLike,
+    Mesh,
     Tuple[FloatArray, npt.NDArray[np.integer]],
     Tuple[FloatArray, npt.NDArray[np.integer], npt.NDArray[Any]],
 ]
@@ -46,8 +63,13 @@ class NeuralMap:
         """Batch mode: runs up to `steps` more steps (None: all); True when the schedule is done."""
     def sdf(self, points: FloatArray) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
         """(values (N,), gradients (N, 3)) at world-frame points; NaN outside the map."""
-    def extract_triangle_mesh(self, voxel_size_m: Optional[float] = None) -> Mesh:
-        """Bake and mesh (vertices float64 world frame, triangles int32)."""
+    def extract_triangle_mesh(self, voxel_size_m: Optional[float] = None) -> MeshArrays:
+        """Bake and mesh (vertices float64 world frame, triangles int32); no colours."""
+    def extract_mesh(
+        self, voxel_size_m: Optional[float] = None, colors_from: Optional[PathLike] = None
+    ) -> Mesh:
+        """Bake and mesh; colors / intensity None (a neural map holds none) unless colors_from
+        names a surface.vdb (or `shine map` output folder) with "color" / "intensity" grids."""
     def bake(self, path: PathLike, voxel_size_m: Optional[float] = None) -> Dict[str, Any]:
         """Writes the surface level set .vdb; returns voxel_size_m, active_voxels, bytes."""
     def save(self, path: PathLike) -> None:
@@ -78,7 +100,9 @@ class TSDFVolume:
     def __init__(self, voxel_size: float, sdf_trunc: float, space_carving: bool = False) -> None: ...
     def integrate(self, points: FloatArray, extrinsic: FloatArray) -> None:
         """World-frame points (N, 3); extrinsic a 4x4 pose or a (3,) sensor origin."""
-    def extract_triangle_mesh(self, fill_holes: bool = True, min_weight: float = 0.0) -> Mesh: ...
+    def extract_triangle_mesh(
+        self, fill_holes: bool = True, min_weight: float = 0.0
+    ) -> MeshArrays: ...
     def extract_vdb_grids(self, out_file: PathLike) -> None: ...
     @property
     def voxel_size(self) -> float: ...
@@ -111,3 +135,14 @@ def evaluate(pred_mesh: MeshInput, ref_mesh: MeshInput, threshold_m: float = 0.1
              tile_m: Optional[float] = None) -> Dict[str, float]:
     """accuracy_m, completion_m, chamfer_l1_m, precision, completion_ratio, fscore, ...
     (tile by tile with tile_m, as `shine eval --tile-m`)"""
+
+def read_mesh(path: PathLike) -> Mesh:
+    """A PLY (or a `shine map` output folder's mesh.ply) with its red/green/blue and intensity."""
+
+def extract_mesh(surface: PathLike, adaptivity: float = 0.0) -> Mesh:
+    """Meshes a surface.vdb (or output folder) and samples its "color" / "intensity" grids at
+    the vertices (nearest active voxel among the 27 around each vertex)."""
+
+def read_surface_grids(path: PathLike) -> Dict[str, Any]:
+    """voxel_size_m, origin_world_m, color_voxels / color (uint8), intensity_voxels / intensity
+    of a surface.vdb's grids (None for a missing grid)."""

@@ -8,6 +8,7 @@ namespace py = pybind11;
 void bind_neural_map(py::module_& m);
 void bind_tsdf_volume(py::module_& m);
 void bind_sequence_eval(py::module_& m);
+void bind_mesh(py::module_& m);
 }  // namespace shinevdb
 
 PYBIND11_MODULE(_shinevdb, m) {
@@ -30,6 +31,7 @@ PYBIND11_MODULE(_shinevdb, m) {
             PyErr_SetString(PyExc_RuntimeError, e.what());
         }
     });
+    shinevdb::bind_mesh(m);  // first: NeuralMap.extract_mesh's signature names shinevdb.Mesh
     shinevdb::bind_neural_map(m);
     shinevdb::bind_tsdf_volume(m);
     shinevdb::bind_sequence_eval(m);

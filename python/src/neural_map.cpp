@@ -22,6 +22,7 @@
 #include <string>
 
 #include "long_call.hpp"
+#include "mesh_colors.hpp"
 #include "numpy_io.hpp"
 #include "shine/bake/level_set_bake.hpp"
 #include "shine/bake/level_set_file.hpp"
@@ -297,6 +298,35 @@ class NeuralMap {
         }
         check_signals();
         return mesh_to_arrays(mesh);
+    }
+
+    py::object extract_mesh(const py::object& voxel_size_m, const py::object& colors_from) const {
+        const BakeConfig bake = bake_config(voxel_size_m);
+        const NeuralSdf& sdf = require_sdf("extract_mesh()");
+        std::optional<fs::path> source;
+        if (!colors_from.is_none())
+            source = file_in_folder(path_string(colors_from), "surface.vdb");
+        TriangleMesh mesh;
+        {
+            py::gil_scoped_release release;
+            const auto limit = limit_threads(config_.threads);
+            // The grids first: a wrong file is reported before the bake, not after it.
+            SurfaceGrids grids;
+            if (source) {
+                grids = read_surface_grids(*source);
+                if (grids.empty()) {
+                    throw DataError("extract_mesh(colors_from='" + source->string() +
+                                    "'): the file holds no 'color' or 'intensity' grid; `shine "
+                                    "map` adds them to surface.vdb when the sequence folder has "
+                                    "camera images or the scans carry intensity");
+                }
+            }
+            const auto surface = bake_level_set(sdf, bake);
+            mesh = mesh_level_set(*surface, config_.mesh);
+            sample_surface_grids(grids, mesh);
+        }
+        check_signals();
+        return mesh_to_python(mesh);
     }
 
     py::dict bake(const py::object& path, const py::object& voxel_size_m) const {
@@ -605,7 +635,30 @@ Bakes the map into a level set and meshes its zero crossing (OpenVDB volumeToMes
 Args:
     voxel_size_m: bake resolution; None: the configuration's (half the leaf size).
 Returns:
-    (vertices (V, 3) float64 world frame, triangles (T, 3) int32).
+    (vertices (V, 3) float64 world frame, triangles (T, 3) int32), without colours: see
+    extract_mesh().
+)doc")
+        .def("extract_mesh", &NeuralMap::extract_mesh, py::arg("voxel_size_m") = py::none(),
+             py::arg("colors_from") = py::none(), R"doc(
+extract_triangle_mesh() as a shinevdb.Mesh, with colours and reflectance taken from a surface.
+
+A neural map holds geometry only: ``shine map`` fuses colour (camera images) and reflectance
+(scan intensity) after training and bakes them beside the level set, into surface.vdb's "color"
+and "intensity" grids, never into map.vdb. So ``colors`` and ``intensity`` are None unless
+``colors_from`` names such a surface.
+
+Args:
+    voxel_size_m: bake resolution; None: the configuration's (half the leaf size).
+    colors_from: None, or a surface.vdb with a "color" and/or "intensity" grid, or the ``shine
+        map`` output folder holding it (e.g. the folder whose map.vdb NeuralMap.load() read).
+        Its grids are sampled at this mesh's vertices in the world frame, by extract_mesh()'s
+        rule (the nearest active voxel around each vertex; (0, 0, 0) / NaN where none is).
+Returns:
+    A Mesh: vertices (V, 3) float64 world frame, triangles (T, 3) int32, colors (V, 3) uint8 or
+    None, intensity (V,) float32 or None.
+Raises:
+    ValueError when ``colors_from`` holds neither grid; OSError naming it when it is missing
+    or not a .vdb.
 )doc")
         .def("bake", &NeuralMap::bake, py::arg("path"), py::arg("voxel_size_m") = py::none(),
              "Writes the surface level set (OpenVDB FloatGrid 'surface', class LEVEL_SET) to "

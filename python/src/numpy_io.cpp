@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "mesh_colors.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/io/ply.hpp"
 
@@ -196,8 +197,10 @@ shine::TriangleMesh mesh_from_python(const py::handle& obj, const char* name) {
         py::gil_scoped_release release;
         return shine::read_ply_mesh(path);
     }
+    if (is_python_mesh(obj)) return mesh_from_python(python_mesh_arrays(obj), name);
     if (!py::isinstance<py::tuple>(obj) && !py::isinstance<py::list>(obj)) {
-        fail(std::string(name) + " must be a PLY path or a (vertices, triangles) tuple");
+        fail(std::string(name) +
+             " must be a PLY path, a shinevdb.Mesh or a (vertices, triangles) tuple");
     }
     const py::sequence parts = py::reinterpret_borrow<py::sequence>(obj);
     if (parts.size() != 2 && parts.size() != 3) {

@@ -53,8 +53,9 @@ py::array_t<float> take_points(std::vector<Eigen::Vector3f>&& points);
 /// (vertices (V, 3) float64 in the world frame, triangles (T, 3) int32) of `mesh`.
 py::tuple mesh_to_arrays(const shine::TriangleMesh& mesh);
 
-/// A mesh from a PLY path or a (vertices, triangles[, face_observed]) tuple; world-frame float64
-/// vertices are kept precise by moving them into a frame shifted by whole kilometres.
+/// A mesh from a PLY path, a shinevdb.Mesh or a (vertices, triangles[, face_observed]) tuple;
+/// world-frame float64 vertices are kept precise by moving them into a frame shifted by whole
+/// kilometres.
 shine::TriangleMesh mesh_from_python(const py::handle& obj, const char* name);
 
 }  // namespace shinevdb

@@ -109,7 +109,7 @@ def test_tsdf_errors():
 
 
 def test_evaluate_errors(tmp_path):
-    with pytest.raises(ValueError, match="pred_mesh must be a PLY path or a"):
+    with pytest.raises(ValueError, match="pred_mesh must be a PLY path, a shinevdb.Mesh or a"):
         shinevdb.evaluate(3, "x.ply")
     tri = (np.zeros((3, 3)), np.array([[0, 1, 5]]))
     with pytest.raises(ValueError, match=r"pred_mesh\[1\] \(triangles\): triangle 0 refers to vertex 5"):
