@@ -35,7 +35,6 @@ void add_map_appearance(const fs::path& out, const ScanSequence& mapped, const M
                           {"vertices", s.vertices},
                           {"coloured_vertices", s.coloured_vertices},
                           {"filled_vertices", s.filled_vertices},
-                          {"voxels", s.voxels},
                           {"coloured_voxels", s.coloured_voxels},
                           {"intensity_points", s.intensity_points},
                           {"intensity_vertices", s.intensity_vertices},

@@ -1,7 +1,6 @@
 #include "shine/bake/surface_attribute_grids.hpp"
 
 #include <openvdb/io/File.h>
-#include <openvdb/tools/Interpolation.h>
 
 #include <cmath>
 #include <string>
@@ -10,97 +9,96 @@
 #include "shine/core/error.hpp"
 
 namespace shine {
-
-LevelSetSurfacePoints level_set_surface_points(const openvdb::FloatGrid& level_set) {
-    LevelSetSurfacePoints out;
-    const openvdb::math::Transform& xform = level_set.transform();
-    const double voxel_m = xform.voxelSize()[0];
-    auto accessor = level_set.getConstAccessor();
-    for (auto it = level_set.cbeginValueOn(); it; ++it) {
-        const openvdb::Coord ijk = it.getCoord();
-        const double phi = *it;
-        Eigen::Vector3d gradient;
-        for (int a = 0; a < 3; ++a) {
-            openvdb::Coord lo = ijk, hi = ijk;
-            lo[a] -= 1;
-            hi[a] += 1;
-            gradient[a] = (accessor.getValue(hi) - accessor.getValue(lo)) / (2.0 * voxel_m);
-        }
-        const openvdb::Vec3d centre = xform.indexToWorld(ijk);
-        Eigen::Vector3d point(centre.x(), centre.y(), centre.z());
-        const double g2 = gradient.squaredNorm();
-        Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-        if (g2 > 1e-12) {
-            normal = gradient / std::sqrt(g2);
-            // Never farther than the band's half-width: a gradient near a seam may be small.
-            const Eigen::Vector3d step = phi * gradient / g2;
-            const double limit_m = 3.0 * voxel_m;
-            point -= step.norm() > limit_m ? step * (limit_m / step.norm()) : step;
-            // A second step along the normal with the distance sampled where the first one
-            // landed: at the band's edge the central differences see the clamped background.
-            const openvdb::Vec3d index =
-                xform.worldToIndex(openvdb::Vec3d(point.x(), point.y(), point.z()));
-            const double residual_m = openvdb::tools::BoxSampler::sample(accessor, index);
-            if (std::abs(residual_m) < limit_m) point -= residual_m * normal;
-        }
-        out.voxels.push_back(ijk);
-        out.points_map.push_back(point);
-        out.normals_map.push_back(normal);
-    }
-    return out;
-}
-
+namespace surface_attribute_grids_internal {
 namespace {
+
+/// In-memory sums (value channels, count in w); never written, so never registered.
+using Vec4fGrid = openvdb::Grid<openvdb::tree::Tree4<openvdb::Vec4f, 5, 4, 3>::Type>;
+
 template <typename GridT>
 typename GridT::Ptr empty_grid_like(const openvdb::FloatGrid& level_set, const char* name) {
     auto grid = GridT::create(typename GridT::ValueType(0));
     grid->setTransform(level_set.transform().copy());
+    for (auto it = level_set.beginMeta(); it != level_set.endMeta(); ++it) {
+        grid->insertMeta(it->first, *it->second);  // origin, creator, ...
+    }
     grid->setName(name);
     grid->setGridClass(openvdb::GRID_UNKNOWN);
-    for (auto it = level_set.beginMeta(); it != level_set.endMeta(); ++it) {
-        // The level set's own metadata (origin, creator) except OpenVDB's grid-class entries.
-        if (it->first == openvdb::GridBase::META_GRID_CLASS ||
-            it->first == openvdb::GridBase::META_GRID_NAME) {
-            continue;
-        }
-        grid->insertMeta(it->first, *it->second);
-    }
     return grid;
 }
 
-void check_sizes(std::size_t voxels, std::size_t values, const char* what) {
-    if (voxels != values) {
+void check_sizes(std::size_t vertices, std::size_t values, const char* what) {
+    if (vertices != values) {
         throw DataError(std::string(what) + ": " + std::to_string(values) + " values for " +
-                        std::to_string(voxels) + " voxels");
+                        std::to_string(vertices) + " vertices");
     }
 }
-}  // namespace
 
-openvdb::Vec3SGrid::Ptr make_color_grid(const openvdb::FloatGrid& level_set,
-                                        const std::vector<openvdb::Coord>& voxels,
-                                        const std::vector<std::array<std::uint8_t, 3>>& rgb,
-                                        const std::vector<float>& weight) {
-    check_sizes(voxels.size(), rgb.size(), "color grid");
-    check_sizes(voxels.size(), weight.size(), "color grid weights");
+/// Sums `value(v)` (a Vec4f: the value's channels and a count of 1 in w) over the vertices
+/// with `known(v)`, into every active level-set voxel at a corner of the vertex's cell.
+template <typename ValueOf, typename Known>
+Vec4fGrid::Ptr corner_sums(const openvdb::FloatGrid& level_set,
+                           const std::vector<Eigen::Vector3f>& vertices_map, ValueOf value_of,
+                           Known known) {
+    auto sums = Vec4fGrid::create(openvdb::Vec4f(0.0f));
+    auto sum_at = sums->getAccessor();
+    auto level = level_set.getConstAccessor();
+    const openvdb::math::Transform& xform = level_set.transform();
+    for (std::size_t v = 0; v < vertices_map.size(); ++v) {
+        if (!known(v)) continue;
+        const Eigen::Vector3f& p = vertices_map[v];
+        const openvdb::Vec3d index = xform.worldToIndex(openvdb::Vec3d(p.x(), p.y(), p.z()));
+        const openvdb::Coord base = openvdb::Coord::floor(index);
+        const openvdb::Vec4f value = value_of(v);
+        for (int corner = 0; corner < 8; ++corner) {
+            const openvdb::Coord ijk =
+                base.offsetBy(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+            if (!level.isValueOn(ijk)) continue;
+            sum_at.setValue(ijk, sum_at.getValue(ijk) + value);
+        }
+    }
+    return sums;
+}
+
+}  // namespace
+}  // namespace surface_attribute_grids_internal
+
+openvdb::Vec3SGrid::Ptr color_grid_from_vertices(
+    const openvdb::FloatGrid& level_set, const std::vector<Eigen::Vector3f>& vertices_map,
+    const std::vector<std::array<std::uint8_t, 3>>& rgb, const std::vector<std::uint8_t>& known) {
+    using namespace surface_attribute_grids_internal;
+    check_sizes(vertices_map.size(), rgb.size(), "color grid");
+    check_sizes(vertices_map.size(), known.size(), "color grid's known flags");
+    const auto sums = corner_sums(
+        level_set, vertices_map,
+        [&](std::size_t v) {
+            return openvdb::Vec4f(rgb[v][0] / 255.0f, rgb[v][1] / 255.0f, rgb[v][2] / 255.0f, 1.0f);
+        },
+        [&](std::size_t v) { return known[v] != 0; });
     auto grid = empty_grid_like<openvdb::Vec3SGrid>(level_set, kColorGridName);
     grid->setVectorType(openvdb::VEC_INVARIANT);
-    auto accessor = grid->getAccessor();
-    for (std::size_t i = 0; i < voxels.size(); ++i) {
-        if (!(weight[i] > 0.0f)) continue;
-        accessor.setValue(
-            voxels[i], openvdb::Vec3s(rgb[i][0] / 255.0f, rgb[i][1] / 255.0f, rgb[i][2] / 255.0f));
+    auto out = grid->getAccessor();
+    for (auto it = sums->cbeginValueOn(); it; ++it) {
+        const openvdb::Vec4f s = *it;
+        out.setValue(it.getCoord(), openvdb::Vec3s(s[0] / s[3], s[1] / s[3], s[2] / s[3]));
     }
     return grid;
 }
 
-openvdb::FloatGrid::Ptr make_intensity_grid(const openvdb::FloatGrid& level_set,
-                                            const std::vector<openvdb::Coord>& voxels,
-                                            const std::vector<float>& intensity) {
-    check_sizes(voxels.size(), intensity.size(), "intensity grid");
+openvdb::FloatGrid::Ptr intensity_grid_from_vertices(
+    const openvdb::FloatGrid& level_set, const std::vector<Eigen::Vector3f>& vertices_map,
+    const std::vector<float>& intensity) {
+    using namespace surface_attribute_grids_internal;
+    check_sizes(vertices_map.size(), intensity.size(), "intensity grid");
+    const auto sums = corner_sums(
+        level_set, vertices_map,
+        [&](std::size_t v) { return openvdb::Vec4f(intensity[v], 0.0f, 0.0f, 1.0f); },
+        [&](std::size_t v) { return std::isfinite(intensity[v]); });
     auto grid = empty_grid_like<openvdb::FloatGrid>(level_set, kIntensityGridName);
-    auto accessor = grid->getAccessor();
-    for (std::size_t i = 0; i < voxels.size(); ++i) {
-        if (std::isfinite(intensity[i])) accessor.setValue(voxels[i], intensity[i]);
+    auto out = grid->getAccessor();
+    for (auto it = sums->cbeginValueOn(); it; ++it) {
+        const openvdb::Vec4f s = *it;
+        out.setValue(it.getCoord(), s[0] / s[3]);
     }
     return grid;
 }

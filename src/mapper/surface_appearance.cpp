@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 
 #include "shine/bake/level_set_file.hpp"
 #include "shine/bake/surface_attribute_grids.hpp"
@@ -35,9 +36,7 @@ std::vector<Eigen::Vector3d> vertex_normals(const TriangleMesh& mesh) {
 
 std::size_t fill_unseen_colours(const TriangleMesh& mesh,
                                 std::vector<std::array<std::uint8_t, 3>>& rgb,
-                                const std::vector<float>& weight, int rings) {
-    std::vector<std::uint8_t> known(weight.size());
-    for (std::size_t i = 0; i < weight.size(); ++i) known[i] = weight[i] > 0.0f;
+                                std::vector<std::uint8_t>& known, int rings) {
     std::size_t filled = 0;
     for (int ring = 0; ring < rings; ++ring) {
         std::vector<Eigen::Vector3d> sum(rgb.size(), Eigen::Vector3d::Zero());
@@ -66,6 +65,23 @@ std::size_t fill_unseen_colours(const TriangleMesh& mesh,
         if (added == 0) break;
     }
     return filled;
+}
+
+void fill_with_mean_colour(std::vector<std::array<std::uint8_t, 3>>& rgb,
+                           const std::vector<std::uint8_t>& known) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    double count = 0.0;
+    for (std::size_t i = 0; i < rgb.size(); ++i) {
+        if (!known[i]) continue;
+        sum += Eigen::Vector3d(rgb[i][0], rgb[i][1], rgb[i][2]);
+        count += 1.0;
+    }
+    if (count == 0.0) return;
+    std::array<std::uint8_t, 3> mean;
+    for (int c = 0; c < 3; ++c) mean[c] = static_cast<std::uint8_t>(std::lround(sum[c] / count));
+    for (std::size_t i = 0; i < rgb.size(); ++i) {
+        if (!known[i]) rgb[i] = mean;
+    }
 }
 
 namespace surface_appearance_internal {
@@ -114,18 +130,10 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
     SurfaceAppearanceStats stats;
     if (mapped.size() == 0) return stats;
     // Is there anything to fuse? Images of mapped scans, or intensity in the first scan.
-    std::vector<fs::path> scan_paths;
-    std::vector<Eigen::Isometry3d> poses;
-    std::vector<std::size_t> indices;
     bool any_image = false;
-    for (std::size_t i = 0; i < mapped.size(); ++i) {
-        scan_paths.push_back(mapped.scan_path(i));
-        poses.push_back(mapped.pose(i));
-        indices.push_back(i);
-        if (rig) {
-            for (std::size_t c = 0; c < rig->cameras.size(); ++c) {
-                any_image = any_image || !rig->image_for_scan(c, scan_paths.back()).empty();
-            }
+    for (std::size_t i = 0; i < mapped.size() && rig && !any_image; ++i) {
+        for (std::size_t c = 0; c < rig->cameras.size(); ++c) {
+            any_image = any_image || !rig->image_for_scan(c, mapped.scan_path(i)).empty();
         }
     }
     const bool any_intensity = !mapped.load(0).intensity.empty();
@@ -134,40 +142,41 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
     const fs::path mesh_path = out_dir / "mesh.ply";
     const fs::path surface_path = out_dir / "surface.vdb";
     TriangleMesh mesh = read_ply_mesh(mesh_path);
-    openvdb::FloatGrid::Ptr level_set = read_level_set(surface_path);
-    const LevelSetSurfacePoints surface = level_set_surface_points(*level_set);
+    const openvdb::FloatGrid::Ptr level_set = read_level_set(surface_path);
+    const double voxel_m = level_set->transform().voxelSize()[0];
     stats.vertices = mesh.vertices.size();
-    stats.voxels = surface.voxels.size();
     openvdb::GridPtrVec extra;
 
     if (any_image) {
-        const std::vector<CameraView> views =
-            load_camera_views(*rig, scan_paths, poses, mesh.origin_world_m, indices);
-        std::vector<MeshRaster> rasters;
-        rasters.reserve(views.size());
-        for (const CameraView& view : views) {
-            rasters.push_back(
-                rasterize_mesh(mesh, view.camera, view.T_map_camera, appearance.fusion.near_m));
-        }
+        // One image at a time: loaded, placed, the mesh rasterised into it, its colours added to
+        // the vertices, and dropped.
+        ColourFusionConfig fusion = appearance.fusion;
+        if (fusion.footprint_m <= 0.0) fusion.footprint_m = appearance.footprint_voxels * voxel_m;
         std::vector<Eigen::Vector3d> vertices(mesh.vertices.size());
-        for (std::size_t i = 0; i < vertices.size(); ++i)
+        for (std::size_t i = 0; i < vertices.size(); ++i) {
             vertices[i] = mesh.vertices[i].cast<double>();
-        FusedColours at_vertices =
-            fuse_colours(vertices, vertex_normals(mesh), views, rasters, appearance.fusion);
-        stats.filled_vertices =
-            fill_unseen_colours(mesh, at_vertices.rgb, at_vertices.weight, appearance.fill_rings);
-        mesh.vertex_rgb = std::move(at_vertices.rgb);
-        stats.coloured_vertices = at_vertices.coloured;
-        const FusedColours at_voxels = fuse_colours(surface.points_map, surface.normals_map, views,
-                                                    rasters, appearance.fusion);
-        stats.coloured_voxels = at_voxels.coloured;
-        extra.push_back(
-            make_color_grid(*level_set, surface.voxels, at_voxels.rgb, at_voxels.weight));
-        stats.views = views.size();
+        }
+        const std::vector<Eigen::Vector3d> normals = vertex_normals(mesh);
+        ColourAccumulator accumulator(vertices, normals, fusion);
+        for (std::size_t i = 0; i < mapped.size(); ++i) {
+            for (const CameraView& view : load_camera_views(
+                     *rig, {mapped.scan_path(i)}, {mapped.pose(i)}, mesh.origin_world_m, {i})) {
+                accumulator.add_view(
+                    view, rasterize_mesh(mesh, view.camera, view.T_map_camera, fusion.near_m));
+                ++stats.views;
+            }
+        }
+        FusedColours fused = accumulator.result();
+        stats.coloured_vertices = fused.coloured;
+        std::vector<std::uint8_t> known(fused.weight.size());
+        for (std::size_t i = 0; i < known.size(); ++i) known[i] = fused.weight[i] > 0.0f;
+        stats.filled_vertices = fill_unseen_colours(mesh, fused.rgb, known, appearance.fill_rings);
+        extra.push_back(color_grid_from_vertices(*level_set, mesh.vertices, fused.rgb, known));
+        fill_with_mean_colour(fused.rgb, known);
+        mesh.vertex_rgb = std::move(fused.rgb);
         stats.colour = true;
     }
     if (any_intensity) {
-        const double voxel_m = level_set->transform().voxelSize()[0];
         const ReflectanceVoxels reflectance =
             accumulate_reflectance(mapped, config, mesh.origin_world_m, voxel_m);
         stats.intensity_points = reflectance.num_points();
@@ -180,21 +189,19 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
                                           reflectance.at(mesh.vertices[i].cast<double>());
                                   }
                               });
-            std::vector<float> at_voxels(surface.points_map.size());
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, at_voxels.size(), 4096),
-                              [&](const tbb::blocked_range<std::size_t>& r) {
-                                  for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                      at_voxels[i] = reflectance.at(surface.points_map[i]);
-                                  }
-                              });
             for (const float v : mesh.vertex_intensity)
                 stats.intensity_vertices += std::isfinite(v);
-            for (const float v : at_voxels) stats.intensity_voxels += std::isfinite(v);
-            extra.push_back(make_intensity_grid(*level_set, surface.voxels, at_voxels));
+            extra.push_back(
+                intensity_grid_from_vertices(*level_set, mesh.vertices, mesh.vertex_intensity));
             stats.intensity = true;
         }
     }
     if (!stats.colour && !stats.intensity) return stats;
+    for (const auto& grid : extra) {
+        const std::size_t active = grid->activeVoxelCount();
+        (grid->getName() == kColorGridName ? stats.coloured_voxels : stats.intensity_voxels) =
+            active;
+    }
     write_surface_grids(surface_path, level_set, extra);
     write_ply_mesh(mesh_path, mesh);
     stats.seconds = seconds_since(start);

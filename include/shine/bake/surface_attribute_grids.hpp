@@ -1,12 +1,13 @@
 // Colour and reflectance beside the level set in surface.vdb: a Vec3SGrid named "color" (8-bit
 // sRGB values / 255, so 0..1) and a FloatGrid named "intensity" (the LiDAR's reflectance as the
-// sensor gives it), with the level set's transform and origin metadata, on the level set's
-// active voxels where a value is known (inactive elsewhere, background 0).
+// sensor gives it), with the level set's transform and metadata.
 //
-// A voxel's values are those of its surface point: the voxel centre x moved to the zero
-// crossing, x - phi(x) * grad(phi)(x) / |grad(phi)(x)|^2 (central differences), then one more step
-// along the normal by the distance sampled there (trilinear): the point a mesh vertex near it
-// would sit on.
+// The values come from the surface's mesh, whose vertices carry them (mapper/surface_appearance):
+// each vertex lies in one cell of the voxel lattice, and every active level-set voxel at a corner
+// of such a cell takes the mean of those vertices' values. The grids so hold the voxels next to
+// the zero crossing (the two layers a trilinear lookup at the surface reads) and agree with the
+// mesh; voxels farther out in the narrow band, and voxels next to no vertex with a known value,
+// stay inactive (background 0).
 #pragma once
 
 #include <openvdb/openvdb.h>
@@ -19,33 +20,21 @@
 
 namespace shine {
 
-/// The level set's active voxels and their surface points, in the grid's frame (the map frame:
-/// world = kOriginMetadataKey origin + point).
-struct LevelSetSurfacePoints {
-    std::vector<openvdb::Coord> voxels;
-    std::vector<Eigen::Vector3d> points_map;   ///< on the zero crossing
-    std::vector<Eigen::Vector3d> normals_map;  ///< unit gradient (outward), zero where flat
-};
-
-/// Every active voxel of `level_set` with its surface point, in a fixed order.
-LevelSetSurfacePoints level_set_surface_points(const openvdb::FloatGrid& level_set);
-
 /// Grid names in surface.vdb.
 inline constexpr char kColorGridName[] = "color";
 inline constexpr char kIntensityGridName[] = "intensity";
 
-/// A "color" grid on `voxels` (rgb / 255) where weight > 0; the level set's transform and
-/// metadata. Throws DataError for mismatched lengths.
-openvdb::Vec3SGrid::Ptr make_color_grid(const openvdb::FloatGrid& level_set,
-                                        const std::vector<openvdb::Coord>& voxels,
-                                        const std::vector<std::array<std::uint8_t, 3>>& rgb,
-                                        const std::vector<float>& weight);
+/// The "color" grid of the mesh `vertices_map` (in the level set's frame) with colours `rgb`,
+/// counting only vertices with `known` != 0 (same lengths; DataError otherwise).
+openvdb::Vec3SGrid::Ptr color_grid_from_vertices(
+    const openvdb::FloatGrid& level_set, const std::vector<Eigen::Vector3f>& vertices_map,
+    const std::vector<std::array<std::uint8_t, 3>>& rgb, const std::vector<std::uint8_t>& known);
 
-/// An "intensity" grid on `voxels` where the value is finite. Throws DataError for mismatched
-/// lengths.
-openvdb::FloatGrid::Ptr make_intensity_grid(const openvdb::FloatGrid& level_set,
-                                            const std::vector<openvdb::Coord>& voxels,
-                                            const std::vector<float>& intensity);
+/// The "intensity" grid of the mesh `vertices_map` with reflectances `intensity` (NaN: unknown,
+/// not counted). Throws DataError for mismatched lengths.
+openvdb::FloatGrid::Ptr intensity_grid_from_vertices(
+    const openvdb::FloatGrid& level_set, const std::vector<Eigen::Vector3f>& vertices_map,
+    const std::vector<float>& intensity);
 
 /// Writes the level set and `extra` grids to `path` atomically (the level set first, so readers
 /// that take the first float level set find it). Throws IoError naming the file.
