@@ -742,7 +742,9 @@ int run_map(const MapOptions& given_options) {
         } else if (incremental_map && incremental_map->odometry) {
             mapped_final = sequence.with_poses(incremental_map->odometry->poses());
         }
-        add_map_appearance(out, mapped_final, config, cameras, appearance_json);
+        const ReflectanceVoxels* reflectance =
+            batch_map && batch_map->reflectance ? &*batch_map->reflectance : nullptr;
+        add_map_appearance(out, mapped_final, config, cameras, reflectance, appearance_json);
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "cli_common.hpp"
+#include "shine/colour/reflectance_voxels.hpp"
 #include "shine/io/camera_rig.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
@@ -18,10 +19,11 @@ namespace shine::cli {
 std::optional<CameraRig> find_sequence_cameras(const ScanSequence& selected, bool quiet);
 
 /// Adds colour and reflectance to OUT's mesh.ply and surface.vdb from the scans of `mapped` (at
-/// the poses the map was made at); prints a line and sets json["appearance"] when it did.
+/// the poses the map was made at; `reflectance`: their intensities if mapping accumulated them);
+/// prints a line and sets json["appearance"] when it did.
 void add_map_appearance(const std::filesystem::path& out, const ScanSequence& mapped,
                         const MapperConfig& config, const std::optional<CameraRig>& rig,
-                        nlohmann::json& json);
+                        const ReflectanceVoxels* reflectance, nlohmann::json& json);
 
 /// With cameras and held-out scans: OUT/mesh.ply's colours rendered into the held-out scans'
 /// cameras (at `scored`'s poses) and compared with their images, beside the naive baseline;

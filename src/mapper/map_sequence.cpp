@@ -13,6 +13,7 @@
 #include "shine/core/progress.hpp"
 #include "shine/core/stopwatch.hpp"
 #include "shine/io/ply.hpp"
+#include "shine/mapper/surface_appearance.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/map_file.hpp"
 
@@ -207,6 +208,14 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
             const double load_seconds = seconds_since(t0);
             StageSeconds stages = mapper.add_scan(scan);
             stages[Stage::kLoad] = load_seconds;
+            if (!scan.intensity.empty()) {
+                if (!result.reflectance) {
+                    result.reflectance.emplace(
+                        resolve_bake_voxel_size_m(config.bake, config.octree.leaf_size_m));
+                }
+                add_scan_reflectance(*result.reflectance, scan, mapper.sdf().origin_world_m,
+                                     config.preprocess);
+            }
             result.profile.frames.push_back(stages);
             progress.update(i + 1,
                             config.dynamic.enabled

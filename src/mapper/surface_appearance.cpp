@@ -84,6 +84,29 @@ void fill_with_mean_colour(std::vector<std::array<std::uint8_t, 3>>& rgb,
     }
 }
 
+void add_scan_reflectance(ReflectanceVoxels& voxels, const Scan& scan,
+                          const Eigen::Vector3d& origin_world_m,
+                          const PreprocessConfig& preprocess) {
+    if (scan.intensity.empty()) return;
+    std::vector<Eigen::Vector3d> points;
+    std::vector<float> intensity;
+    points.reserve(scan.points_sensor.size());
+    intensity.reserve(scan.points_sensor.size());
+    for (std::size_t k = 0; k < scan.points_sensor.size(); ++k) {
+        const Eigen::Vector3d p = scan.points_sensor[k].cast<double>();
+        const double range_m = p.norm();
+        if (!std::isfinite(range_m) || range_m < preprocess.min_range_m ||
+            range_m > preprocess.max_range_m) {
+            continue;
+        }
+        Eigen::Vector3d p_map = scan.T_world_sensor * p;
+        p_map -= origin_world_m;
+        points.push_back(p_map);
+        intensity.push_back(scan.intensity[k]);
+    }
+    voxels.add(points, intensity);
+}
+
 namespace surface_appearance_internal {
 namespace {
 
@@ -94,26 +117,11 @@ ReflectanceVoxels accumulate_reflectance(const ScanSequence& mapped, const Mappe
     const bool deskew =
         deskew_active(config.deskew, config.odometry.estimate_poses, mapped.has_sweep_times());
     DeskewStats ignored;
-    const double min_range_m = config.preprocess.min_range_m;
-    const double max_range_m = config.preprocess.max_range_m;
     for (std::size_t i = 0; i < mapped.size(); ++i) {
         Scan scan = mapped.load(i);
         if (scan.intensity.empty()) continue;
         if (deskew) deskew_with_sequence_poses(scan, mapped, i, config.deskew, ignored);
-        std::vector<Eigen::Vector3d> points;
-        std::vector<float> intensity;
-        points.reserve(scan.points_sensor.size());
-        intensity.reserve(scan.points_sensor.size());
-        for (std::size_t k = 0; k < scan.points_sensor.size(); ++k) {
-            const Eigen::Vector3d p = scan.points_sensor[k].cast<double>();
-            const double range_m = p.norm();
-            if (!std::isfinite(range_m) || range_m < min_range_m || range_m > max_range_m) continue;
-            Eigen::Vector3d p_map = scan.T_world_sensor * p;
-            p_map -= origin_world_m;
-            points.push_back(p_map);
-            intensity.push_back(scan.intensity[k]);
-        }
-        voxels.add(points, intensity);
+        add_scan_reflectance(voxels, scan, origin_world_m, config.preprocess);
     }
     return voxels;
 }
@@ -124,7 +132,8 @@ ReflectanceVoxels accumulate_reflectance(const ScanSequence& mapped, const Mappe
 SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const ScanSequence& mapped,
                                               const MapperConfig& config,
                                               const std::optional<CameraRig>& rig,
-                                              const SurfaceAppearanceConfig& appearance) {
+                                              const SurfaceAppearanceConfig& appearance,
+                                              const ReflectanceVoxels* reflectance_map) {
     using namespace surface_appearance_internal;
     const auto start = std::chrono::steady_clock::now();
     SurfaceAppearanceStats stats;
@@ -177,8 +186,11 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
         stats.colour = true;
     }
     if (any_intensity) {
-        const ReflectanceVoxels reflectance =
-            accumulate_reflectance(mapped, config, mesh.origin_world_m, voxel_m);
+        std::optional<ReflectanceVoxels> reloaded;
+        if (!reflectance_map) {
+            reloaded = accumulate_reflectance(mapped, config, mesh.origin_world_m, voxel_m);
+        }
+        const ReflectanceVoxels& reflectance = reflectance_map ? *reflectance_map : *reloaded;
         stats.intensity_points = reflectance.num_points();
         if (!reflectance.empty()) {
             mesh.vertex_intensity.resize(mesh.vertices.size());

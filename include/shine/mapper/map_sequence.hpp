@@ -14,9 +14,11 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "shine/bake/level_set_bake.hpp"
+#include "shine/colour/reflectance_voxels.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/checkpoint.hpp"
@@ -55,6 +57,9 @@ struct SequenceMap {
     /// and the step its training started at (the steps before it count as done).
     std::size_t warm_start_corners = 0;
     int warm_start_step = 0;
+    /// Scans with intensity: their points' intensities as the map placed them, in the map frame,
+    /// in voxels of the baked level set's size (surface_appearance.hpp); empty without.
+    std::optional<ReflectanceVoxels> reflectance;
 };
 
 /// The bake and mesh stages of `products` in profile form.

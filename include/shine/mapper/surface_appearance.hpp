@@ -11,9 +11,9 @@
 //      of their coloured neighbours, ring by ring (up to fill_rings); the rest, out of every
 //      camera's view, the mean colour of the seen ones (closer to what a camera would see there
 //      than black: +0.1 dB on the real drive's held-out images).
-//   3. Reflectance (scans with intensity): every mapped scan is read again, deskewed as for
-//      mapping, its points' intensities accumulated in voxels (reflectance_voxels.hpp) and read
-//      at the vertices.
+//   3. Reflectance (scans with intensity): the points' intensities accumulated in voxels
+//      (reflectance_voxels.hpp; batch mapping does it as it loads the scans, else every mapped
+//      scan is read again and deskewed as for mapping) and read at the vertices.
 //   4. mesh.ply gets per-vertex red, green, blue and intensity; surface.vdb the grids "color" and
 //      "intensity" on the voxels next to the vertices (surface_attribute_grids.hpp; the colour
 //      grid only where a camera saw the surface or a neighbour's colour reached it). Both files
@@ -26,6 +26,7 @@
 #include <optional>
 
 #include "shine/colour/colour_fusion.hpp"
+#include "shine/colour/reflectance_voxels.hpp"
 #include "shine/io/camera_rig.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
@@ -53,16 +54,26 @@ struct SurfaceAppearanceStats {
     double seconds = 0.0;
 };
 
+/// Adds the intensities of `scan`'s points (at scan.T_world_sensor, as mapping placed them) with
+/// ranges inside preprocess's to `voxels`, in the map frame at `origin_world_m`. Nothing for a
+/// scan without intensity.
+void add_scan_reflectance(ReflectanceVoxels& voxels, const Scan& scan,
+                          const Eigen::Vector3d& origin_world_m,
+                          const PreprocessConfig& preprocess);
+
 /// Adds colour and reflectance to OUT_DIR/mesh.ply and OUT_DIR/surface.vdb (see the file
 /// comment) from the scans of `mapped` (at the poses the map was made at) and the cameras of
 /// `rig` (none: reflectance only). Does nothing when there are no images of those scans and no
-/// intensity. Throws IoError / DataError naming a broken image or file; the products are then
-/// left as they were.
+/// intensity. `reflectance_map`: the scans' intensities already accumulated (add_scan_reflectance,
+/// in the map frame of mesh.ply, voxels of surface.vdb's size); null: read the scans again.
+/// Throws IoError / DataError naming a broken image or file; the products are then left as they
+/// were.
 SurfaceAppearanceStats add_surface_appearance(const std::filesystem::path& out_dir,
                                               const ScanSequence& mapped,
                                               const MapperConfig& config,
                                               const std::optional<CameraRig>& rig,
-                                              const SurfaceAppearanceConfig& appearance = {});
+                                              const SurfaceAppearanceConfig& appearance = {},
+                                              const ReflectanceVoxels* reflectance_map = nullptr);
 
 /// Area-weighted unit vertex normals of `mesh` (zero for a vertex without triangles).
 std::vector<Eigen::Vector3d> vertex_normals(const TriangleMesh& mesh);
