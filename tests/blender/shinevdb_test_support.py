@@ -77,6 +77,13 @@ def read_ply(path: str) -> Tuple[np.ndarray, np.ndarray]:
     Vertex properties may be any scalar types (x, y, z are used); faces must be one
     ``list uchar int|uint vertex_indices`` property with three indices each.
     """
+    records, triangles = read_ply_records(path)
+    return np.stack([records[axis] for axis in "xyz"], axis=1).astype(np.float64), triangles
+
+
+def read_ply_records(path: str) -> Tuple[np.ndarray, np.ndarray]:
+    """As :func:`read_ply`, but the vertices as a structured array of all their properties, as
+    stored (e.g. ``records["red"]`` uint8 for ``shine map``'s colours)."""
     scalar = {"char": "i1", "uchar": "u1", "short": "<i2", "ushort": "<u2", "int": "<i4",
               "uint": "<u4", "float": "<f4", "double": "<f8"}
     with open(path, "rb") as ply:
@@ -104,8 +111,7 @@ def read_ply(path: str) -> Tuple[np.ndarray, np.ndarray]:
         face_dtype = np.dtype([("count", "u1"), ("indices", "<i4", 3)])
         faces = np.frombuffer(ply.read(face_dtype.itemsize * face_count), face_dtype)
     expect(bool(np.all(faces["count"] == 3)), f"{path}: only triangles are supported")
-    vertices = np.stack([vertex_data[axis] for axis in "xyz"], axis=1).astype(np.float64)
-    return vertices, faces["indices"].astype(np.int64)
+    return vertex_data, faces["indices"].astype(np.int64)
 
 
 def evaluated_mesh(obj: bpy.types.Object) -> Tuple[np.ndarray, np.ndarray]:
@@ -142,11 +148,30 @@ def used_vertices(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 def nearest_vertices(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """For each point, the nearest of ``vertices`` (the PLY's vertex order is shine's own: it
     meshes in columns, so vertices are matched by position, not by index)."""
+    return vertices[nearest_vertex_indices(points, vertices)]
+
+
+def nearest_vertex_indices(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """For each point, the index of the nearest of ``vertices``."""
     tree = KDTree(len(vertices))
     for index, vertex in enumerate(vertices.tolist()):
         tree.insert(vertex, index)
     tree.balance()
-    return np.array([tree.find(point)[0] for point in points.tolist()])
+    return np.array([tree.find(point)[1] for point in points.tolist()], np.int64)
+
+
+def check_colour_material(mesh: bpy.types.Mesh, label: str) -> None:
+    """The mesh's only material is the add-on's ``ShineVDB colour``, whose Principled BSDF takes
+    its Base Color from an Attribute node reading ``Col``."""
+    expect([m.name for m in mesh.materials] == ["ShineVDB colour"],
+           f"{label}: materials {[m.name for m in mesh.materials]}")
+    nodes = mesh.materials[0].node_tree
+    base_colour = next(node for node in nodes.nodes
+                       if node.type == "BSDF_PRINCIPLED").inputs["Base Color"]
+    sources = [link.from_node for link in nodes.links if link.to_socket == base_colour]
+    expect(len(sources) == 1 and sources[0].type == "ATTRIBUTE"
+           and sources[0].attribute_name == "Col" and sources[0].name == "Col",
+           f"{label}: Base Color does not come from an Attribute node 'Col': {sources}")
 
 
 @dataclass

@@ -135,15 +135,7 @@ def check_colours(mesh_object: bpy.types.Object, coloured: ColouredMap, voxel_si
            f"{label}: intensity is not the vertex's z")
     expect(set(red) == {230, 25} and len(set(blue)) > 50, f"{label}: a degenerate fixture")
 
-    expect([m.name for m in mesh.materials] == ["ShineVDB colour"],
-           f"{label}: materials {[m.name for m in mesh.materials]}")
-    nodes = mesh.materials[0].node_tree
-    base_colour = next(node for node in nodes.nodes
-                       if node.type == "BSDF_PRINCIPLED").inputs["Base Color"]
-    sources = [link.from_node for link in nodes.links if link.to_socket == base_colour]
-    expect(len(sources) == 1 and sources[0].type == "ATTRIBUTE"
-           and sources[0].attribute_name == "Col" and sources[0].name == "Col",
-           f"{label}: Base Color does not come from an Attribute node 'Col': {sources}")
+    support.check_colour_material(mesh, label)
 
 
 def render_top_view(mesh_object: bpy.types.Object, coloured: ColouredMap, png: str) -> None:
