@@ -4,9 +4,9 @@
 // vertex a camera saw is compared with the albedo of the street rebuilt here from the same seed.
 //
 //   - known colours are recovered on the vertices that a mapped camera saw;
-//   - a facade behind a parked car keeps the facade's colour (the occlusion test of
-//     colour/colour_fusion.hpp), and the same check fails when that fusion runs with occlusion
-//     disabled;
+//   - a facade behind a parked car keeps the facade's colour (the fit of
+//     colour/vertex_colour_fit.hpp takes each pixel's colour to the surface nearest the camera),
+//     and the same check fails on the nearest-camera baseline, which has no occlusion test;
 //   - the held-out yardstick (--holdout-every) beats the nearest-camera baseline;
 //   - a street without images (and without intensity) gets no colour and no extra grid;
 //   - a broken camera.yaml stops `shine map` before it maps, naming the file.
@@ -37,8 +37,9 @@
 
 #include "cli_test_support.hpp"
 #include "shine/colour/camera_view.hpp"
-#include "shine/colour/colour_fusion.hpp"
 #include "shine/colour/mesh_raster.hpp"
+#include "shine/colour/photometric_score.hpp"
+#include "shine/colour/vertex_colour_fit.hpp"
 #include "shine/eval/heldout_ranges.hpp"
 #include "shine/geometry/ray_caster.hpp"
 #include "shine/io/camera_rig.hpp"
@@ -475,16 +476,17 @@ TEST(ColourCli, KnownColoursAreRecoveredWhereACameraSawTheSurface) {
         100.0 * within_share);
     // Measured (seed 3, 12 scans, 8 mapped, 150 steps): 277 617 vertices, 88.2 % of them on the
     // true street (the rest: the surface extrapolated past what the scans saw), 16 410 seen.
-    // Per-channel |error|: median 0, p90 1, p95 13, p99 63; worst channel per vertex: median 0,
-    // p90 1, p95 23; 94.7 % of the seen vertices within 20 levels in every channel. The tail is
-    // pattern edges and thin parts (wheels 38 % over 20, poles 33 %, trunks 16 %; facades 3.7 %,
-    // ground 5.8 %, car bodies 3.3 %).
+    // Per-channel |error|: median 0, p90 6; worst channel per vertex: median 0, p90 10; 94.1 % of
+    // the seen vertices within 20 levels in every channel (the least-squares fit sharpens edges,
+    // so the p90 grew from 1 and 1 with a weighted mean of samples while held-out PSNR rose by
+    // 1.6 dB). The tail is pattern edges and thin parts (with the weighted mean: wheels 38 % over
+    // 20, poles 33 %, trunks 16 %; facades 3.7 %, ground 5.8 %, car bodies 3.3 %).
     EXPECT_GT(static_cast<double>(found) / m.truth.size(), 0.8);
     EXPECT_GT(seen, 12000u);
     EXPECT_LE(quantile(channel_errors, 0.5), 2.0);
-    EXPECT_LE(quantile(channel_errors, 0.9), 6.0);
+    EXPECT_LE(quantile(channel_errors, 0.9), 10.0);
     EXPECT_LE(quantile(vertex_errors, 0.5), 2.0);
-    EXPECT_LE(quantile(vertex_errors, 0.9), 8.0);
+    EXPECT_LE(quantile(vertex_errors, 0.9), 15.0);
     EXPECT_GT(within_share, 0.90);
 }
 
@@ -493,9 +495,8 @@ TEST(ColourCli, FacadesBehindParkedCarsKeepTheirOwnColour) {
     const std::vector<FacadeBehindCar> behind = facade_vertices_behind_cars(m);
     const double mapped_share = share_car_coloured(behind, m.mesh.vertex_rgb);
 
-    // The same fusion as `shine map` (colour_fusion.hpp with the footprint surface_appearance
-    // gives it, on the map's mesh, at the mapped scans' poses), once as configured and once with
-    // the occlusion test disabled by a depth tolerance longer than the street.
+    // The same fit as `shine map` (vertex_colour_fit.hpp on the map's mesh, at the mapped
+    // scans' poses), and the naive baseline on the same views, which has no occlusion test.
     const Products& p = products();
     const std::optional<CameraRig> rig = find_camera_rig(p.street);
     ASSERT_TRUE(rig.has_value());
@@ -513,43 +514,31 @@ TEST(ColourCli, FacadesBehindParkedCarsKeepTheirOwnColour) {
     const std::vector<CameraView> views =
         load_camera_views(*rig, scans, poses, m.mesh.origin_world_m, indices);
     ASSERT_EQ(views.size(), m.cameras.size());
-    openvdb::initialize();
-    openvdb::io::File file((p.map / "surface.vdb").string());
-    file.open();
-    const double voxel_m = file.readGrid("surface")->transform().voxelSize()[0];
-    file.close();
-    ColourFusionConfig config;
-    config.footprint_m = SurfaceAppearanceConfig{}.footprint_voxels * voxel_m;
-    std::vector<MeshRaster> rasters;
+    const SurfaceAppearanceConfig appearance;
+    VertexColourFit fit(m.mesh, appearance.fit);
     for (const CameraView& v : views) {
-        rasters.push_back(rasterize_mesh(m.mesh, v.camera, v.T_map_camera, config.near_m));
+        fit.add_view(v, rasterize_mesh(m.mesh, v.camera, v.T_map_camera, appearance.near_m));
     }
-    std::vector<Eigen::Vector3d> points(m.mesh.vertices.size());
-    for (std::size_t i = 0; i < points.size(); ++i) points[i] = m.mesh.vertices[i].cast<double>();
-    const FusedColours fused = fuse_colours(points, m.normals, views, rasters, config);
-    ColourFusionConfig no_occlusion = config;
-    no_occlusion.depth_tolerance_m = 1e9;
-    const FusedColours unoccluded = fuse_colours(points, m.normals, views, rasters, no_occlusion);
-    const double unoccluded_share = share_car_coloured(behind, unoccluded.rgb);
+    const VertexColours fitted = fit.solve();
+    const double unoccluded_share =
+        share_car_coloured(behind, nearest_camera_colours(m.mesh, views));
 
-    // The replay is `shine map`'s fusion: the vertices it coloured have the map's colours.
+    // The replay is `shine map`'s fit: the vertices it coloured have the map's colours.
     std::size_t same = 0;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        same += fused.weight[i] <= 0.0f || fused.rgb[i] == m.mesh.vertex_rgb[i];
+    for (std::size_t i = 0; i < m.mesh.vertices.size(); ++i) {
+        same += fitted.support[i] <= 0.0f || fitted.rgb[i] == m.mesh.vertex_rgb[i];
     }
     std::printf(
         "%zu facade vertices behind a parked car from a mapped camera; car-coloured: %.1f %% in "
-        "the map, %.1f %% when fused without the occlusion test; replay equal to the map on "
-        "%.2f %% of the vertices\n",
+        "the map, %.1f %% by the nearest-camera baseline (no occlusion test); replay equal to the "
+        "map on %.2f %% of the vertices\n",
         behind.size(), 100.0 * mapped_share, 100.0 * unoccluded_share,
-        100.0 * same / points.size());
-    // Measured: 4 982 such vertices; car-coloured 0.8 % in the map (36 of the 38 were not
-    // fused but filled from neighbours: truly visible, but rejected by the silhouette margin or
-    // the grazing angle on the map's surface), 31.9 % with occlusion disabled.
-    EXPECT_EQ(same, points.size());
+        100.0 * same / m.mesh.vertices.size());
+    // Measured: 4 982 such vertices; car-coloured 1.7 % in the map, 29.0 % by the baseline.
+    EXPECT_EQ(same, m.mesh.vertices.size());
     ASSERT_GT(behind.size(), 2000u);
     EXPECT_LT(mapped_share, 0.03);
-    // The check above can fail: without the occlusion test many of these vertices are the car's.
+    // The check above can fail: without an occlusion test many of these vertices are the car's.
     EXPECT_GT(unoccluded_share, 0.15);
 }
 
@@ -563,12 +552,12 @@ TEST(ColourCli, HeldOutImagesScoreTheColouredMapAboveTheBaseline) {
     const double hit_share = h.at("hit_share").get<double>();
     std::printf("held-out images: PSNR %.2f dB, nearest-camera baseline %.2f dB, hit share %.3f\n",
                 psnr, baseline, hit_share);
-    // Measured: 22.54 dB against the baseline's 22.15 dB (+0.39 dB) over 58.4 % of the held-out
+    // Measured: 24.10 dB against the baseline's 22.15 dB (+1.95 dB) over 58.4 % of the held-out
     // pixels. Not higher with exact poses and colours: one colour per vertex (0.1 m apart) blurs
     // the 0.06-0.15 m joints and markings, and the held-out cameras see past the mapped ones'
     // views, where vertices carry filled colours.
-    EXPECT_GT(psnr, baseline + 0.2);
-    EXPECT_GT(psnr, 21.5);
+    EXPECT_GT(psnr, baseline + 1.5);
+    EXPECT_GT(psnr, 23.5);
     EXPECT_GT(hit_share, 0.0);
     EXPECT_LE(hit_share, 1.0);
     const std::vector<std::size_t> heldout = holdout_frames(kScans, kHoldoutEvery);

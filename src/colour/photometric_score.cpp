@@ -5,14 +5,28 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
 #include <string>
 
-#include "shine/colour/colour_fusion.hpp"
 #include "shine/core/error.hpp"
 
 namespace shine {
+
+Eigen::Vector3d sample_bilinear(const RgbImage& image, double u, double v) {
+    u = std::clamp(u, 0.0, image.width() - 1.0);
+    v = std::clamp(v, 0.0, image.height() - 1.0);
+    const int u0 = std::min(static_cast<int>(u), image.width() - 1);
+    const int v0 = std::min(static_cast<int>(v), image.height() - 1);
+    const int u1 = std::min(u0 + 1, image.width() - 1);
+    const int v1 = std::min(v0 + 1, image.height() - 1);
+    const double fu = u - u0, fv = v - v0;
+    const auto at = [&](int x, int y) {
+        const Rgb c = image.at(x, y);
+        return Eigen::Vector3d(c.r, c.g, c.b);
+    };
+    return (1.0 - fv) * ((1.0 - fu) * at(u0, v0) + fu * at(u1, v0)) +
+           fv * ((1.0 - fu) * at(u0, v1) + fu * at(u1, v1));
+}
 
 ColourRendering render_vertex_colours(const TriangleMesh& mesh,
                                       const std::vector<std::array<std::uint8_t, 3>>& vertex_rgb,

@@ -12,6 +12,7 @@
 #include "shine/colour/camera_view.hpp"
 #include "shine/colour/mesh_raster.hpp"
 #include "shine/colour/reflectance_voxels.hpp"
+#include "shine/colour/vertex_colour_fit.hpp"
 #include "shine/core/stopwatch.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
@@ -157,28 +158,21 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
     openvdb::GridPtrVec extra;
 
     if (any_image) {
-        // One image at a time: loaded, placed, the mesh rasterised into it, its colours added to
-        // the vertices, and dropped.
-        ColourFusionConfig fusion = appearance.fusion;
-        if (fusion.footprint_m <= 0.0) fusion.footprint_m = appearance.footprint_voxels * voxel_m;
-        std::vector<Eigen::Vector3d> vertices(mesh.vertices.size());
-        for (std::size_t i = 0; i < vertices.size(); ++i) {
-            vertices[i] = mesh.vertices[i].cast<double>();
-        }
-        const std::vector<Eigen::Vector3d> normals = vertex_normals(mesh);
-        ColourAccumulator accumulator(vertices, normals, fusion);
+        // One image at a time: loaded, placed, the mesh rasterised into it, its pixels added to
+        // the fit, and dropped.
+        VertexColourFit fit(mesh, appearance.fit);
         for (std::size_t i = 0; i < mapped.size(); ++i) {
             for (const CameraView& view : load_camera_views(
                      *rig, {mapped.scan_path(i)}, {mapped.pose(i)}, mesh.origin_world_m, {i})) {
-                accumulator.add_view(
-                    view, rasterize_mesh(mesh, view.camera, view.T_map_camera, fusion.near_m));
+                fit.add_view(
+                    view, rasterize_mesh(mesh, view.camera, view.T_map_camera, appearance.near_m));
                 ++stats.views;
             }
         }
-        FusedColours fused = accumulator.result();
+        VertexColours fused = fit.solve();
         stats.coloured_vertices = fused.coloured;
-        std::vector<std::uint8_t> known(fused.weight.size());
-        for (std::size_t i = 0; i < known.size(); ++i) known[i] = fused.weight[i] > 0.0f;
+        std::vector<std::uint8_t> known(fused.support.size());
+        for (std::size_t i = 0; i < known.size(); ++i) known[i] = fused.support[i] > 0.0f;
         stats.filled_vertices = fill_unseen_colours(mesh, fused.rgb, known, appearance.fill_rings);
         extra.push_back(color_grid_from_vertices(*level_set, mesh.vertices, fused.rgb, known));
         fill_with_mean_colour(fused.rgb, known);

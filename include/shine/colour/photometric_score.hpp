@@ -49,6 +49,10 @@ PhotometricScore score_rendering(const ColourRendering& rendering, const RgbImag
 /// PSNR of a pooled MSE (several frames: their squared errors summed over all their hit pixels).
 double psnr_from_mse(double mse);
 
+/// Bilinear sample of `image` at pixel coordinates (u, v) (centres at integers), clamped to the
+/// image; channels as doubles in [0, 255].
+Eigen::Vector3d sample_bilinear(const RgbImage& image, double u, double v);
+
 /// The naive baseline's vertex colours (see the file comment); vertices no camera sees are black.
 std::vector<std::array<std::uint8_t, 3>> nearest_camera_colours(
     const TriangleMesh& mesh, const std::vector<CameraView>& views);

@@ -5,9 +5,8 @@
 //   1. mesh.ply and surface.vdb are read back (the mesh is held whole here, unlike when meshing).
 //   2. Colour (with images): every mapped scan's images, one at a time, are placed at the scan's
 //      final pose (the refined one in batch mode), the mesh is rasterised into each (MeshRaster)
-//      and the mesh's vertices take the fused colour of the views that see them
-//      (colour_fusion.hpp: occlusion against the map's own surface, each view's colour the
-//      image's mean over half a voxel at the vertex). Vertices no camera saw take the mean colour
+//      and the mesh's vertex colours are fitted to the pixels (vertex_colour_fit.hpp: least
+//      squares; occlusion by the map's own surface). Vertices no camera saw take the mean colour
 //      of their coloured neighbours, ring by ring (up to fill_rings); the rest, out of every
 //      camera's view, the mean colour of the seen ones (closer to what a camera would see there
 //      than black: +0.1 dB on the real drive's held-out images).
@@ -25,8 +24,8 @@
 #include <filesystem>
 #include <optional>
 
-#include "shine/colour/colour_fusion.hpp"
 #include "shine/colour/reflectance_voxels.hpp"
+#include "shine/colour/vertex_colour_fit.hpp"
 #include "shine/io/camera_rig.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
@@ -34,8 +33,8 @@
 namespace shine {
 
 struct SurfaceAppearanceConfig {
-    ColourFusionConfig fusion;  ///< fusion.footprint_m 0: footprint_voxels of the level set's
-    double footprint_voxels = 0.5;
+    VertexColourFitConfig fit;
+    double near_m = 0.3;  ///< triangles nearer a camera are left out of its z-buffer
     int fill_rings = 20;  ///< neighbour rings an unseen vertex may take its colour from
 };
 
@@ -78,10 +77,14 @@ SurfaceAppearanceStats add_surface_appearance(const std::filesystem::path& out_d
 /// Area-weighted unit vertex normals of `mesh` (zero for a vertex without triangles).
 std::vector<Eigen::Vector3d> vertex_normals(const TriangleMesh& mesh);
 
-/// Gives vertices of weight 0 the mean colour of their neighbours of weight > 0, ring by ring,
-/// at most `rings` times; returns how many were filled (their weight stays 0).
+/// Gives vertices with known 0 the mean colour of their known neighbours, ring by ring, at most
+/// `rings` times, and marks them known; returns how many were filled.
 std::size_t fill_unseen_colours(const TriangleMesh& mesh,
                                 std::vector<std::array<std::uint8_t, 3>>& rgb,
-                                const std::vector<float>& weight, int rings);
+                                std::vector<std::uint8_t>& known, int rings);
+
+/// Gives vertices with known 0 the mean colour of the known ones (unchanged when none is known).
+void fill_with_mean_colour(std::vector<std::array<std::uint8_t, 3>>& rgb,
+                           const std::vector<std::uint8_t>& known);
 
 }  // namespace shine

@@ -1,15 +1,16 @@
-// Colour fusion on analytic scenes: z-buffers against the ray caster, occlusion (a red box in
-// front of a blue wall), silhouette margins, neighbour filling, reflectance voxels, and the
-// photometric yardstick.
+// Colour on analytic scenes: z-buffers against the ray caster, the vertex colour fit (occlusion
+// by a red box in front of a blue wall, colours it can show exactly, silhouette margins),
+// reflectance voxels, and the photometric yardstick.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "shine/colour/camera_view.hpp"
-#include "shine/colour/colour_fusion.hpp"
 #include "shine/colour/mesh_raster.hpp"
 #include "shine/colour/photometric_score.hpp"
 #include "shine/colour/reflectance_voxels.hpp"
+#include "shine/colour/vertex_colour_fit.hpp"
 #include "shine/core/error.hpp"
 #include "shine/geometry/ray_caster.hpp"
 
@@ -109,79 +110,123 @@ TEST(MeshRaster, LeavesOutTrianglesBehindOrAtTheCamera) {
     EXPECT_NEAR(raster.depth_m[raster.index(80, 60)], 2.0, kDepthToleranceM);
 }
 
-/// Points on the wall straight behind the box, and their normals (facing the cameras).
-std::vector<Eigen::Vector3d> wall_points_behind_box() {
-    std::vector<Eigen::Vector3d> points;
-    for (double x = -0.5; x <= 0.5; x += 0.25) {
-        for (double y = -0.5; y <= 0.5; y += 0.25) points.emplace_back(x, y, 10.0);
+/// A wall at z = 10 as a grid of vertices 0.5 m apart over [-10, 10] x [-5, 5], coloured by
+/// `colour_at(x, y)`, and the red box face at z = 6 in front of its middle.
+template <typename ColourAt>
+TriangleMesh gridded_wall_and_box(ColourAt colour_at) {
+    TriangleMesh mesh;
+    constexpr int kNx = 41, kNy = 21;
+    for (int j = 0; j < kNy; ++j) {
+        for (int i = 0; i < kNx; ++i) {
+            const double x = -10.0 + 0.5 * i, y = -5.0 + 0.5 * j;
+            mesh.vertices.emplace_back(static_cast<float>(x), static_cast<float>(y), 10.0f);
+            mesh.vertex_rgb.push_back(colour_at(x, y));
+        }
     }
-    return points;
+    for (int j = 0; j + 1 < kNy; ++j) {
+        for (int i = 0; i + 1 < kNx; ++i) {
+            const int a = j * kNx + i;
+            mesh.triangles.emplace_back(a, a + 1, a + kNx + 1);
+            mesh.triangles.emplace_back(a, a + kNx + 1, a + kNx);
+        }
+    }
+    add_rectangle(mesh, -1, 1, -1, 1, 6.0, kRed);
+    return mesh;
 }
 
-TEST(ColourFusion, AWallBehindABoxTakesTheWallsColourNotTheBoxs) {
-    const TriangleMesh scene = wall_and_box();
+/// The wall's vertex nearest (x, y).
+std::size_t wall_vertex(double x, double y) {
+    return static_cast<std::size_t>(std::lround((y + 5.0) / 0.5) * 41 +
+                                    std::lround((x + 10.0) / 0.5));
+}
+
+VertexColours fit_from(const TriangleMesh& mesh, const std::vector<CameraView>& views,
+                       const VertexColourFitConfig& config = {}) {
+    VertexColourFit fit(mesh, config);
+    for (const CameraView& view : views) {
+        fit.add_view(view, rasterize_mesh(mesh, view.camera, view.T_map_camera));
+    }
+    return fit.solve();
+}
+
+TEST(VertexColourFit, AWallBehindABoxTakesTheWallsColourNotTheBoxs) {
+    const TriangleMesh scene = gridded_wall_and_box([](double, double) { return kBlue; });
     // One camera sees the box in front of the wall's middle; the other, 6 m to the side, sees
     // the wall's middle past the box.
     const std::vector<CameraView> views = {photograph(scene, {0, 0, 0}),
                                            photograph(scene, {6, 0, 0})};
-    std::vector<MeshRaster> rasters;
-    for (const CameraView& view : views) {
-        rasters.push_back(rasterize_mesh(scene, view.camera, view.T_map_camera));
+    const VertexColours fitted = fit_from(scene, views);
+    for (const double x : {-0.5, 0.0, 0.5}) {
+        for (const double y : {-0.5, 0.0, 0.5}) {
+            const std::size_t v = wall_vertex(x, y);
+            ASSERT_GT(fitted.support[v], 0.0f);
+            for (int c = 0; c < 3; ++c) EXPECT_NEAR(fitted.rgb[v][c], kBlue[c], 1) << x << "," << y;
+        }
     }
-    const std::vector<Eigen::Vector3d> points = wall_points_behind_box();
-    const std::vector<Eigen::Vector3d> normals(points.size(), Eigen::Vector3d(0, 0, -1));
-    const FusedColours fused = fuse_colours(points, normals, views, rasters);
-    ASSERT_EQ(fused.coloured, points.size());
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        for (int c = 0; c < 3; ++c) EXPECT_NEAR(fused.rgb[i][c], kBlue[c], 1) << "point " << i;
-    }
-    // Without the occlusion test (any depth accepted) the box's red bleeds onto the wall.
-    ColourFusionConfig blind;
-    blind.depth_tolerance_m = 1e3;
-    const FusedColours bled = fuse_colours(points, normals, views, rasters, blind);
-    EXPECT_GT(bled.rgb[points.size() / 2][0], 80);
-
-    // The box itself is red from the camera that sees it, and nobody else.
-    const FusedColours box = fuse_colours({{0.0, 0.0, 6.0}}, {{0.0, 0.0, -1.0}}, views, rasters);
-    for (int c = 0; c < 3; ++c) EXPECT_NEAR(box.rgb[0][c], kRed[c], 1);
+    // The box's corners are red; the baseline without an occlusion test paints the wall behind
+    // the box red from the nearer camera (PhotometricScore.NaiveBaseline... below).
+    const std::size_t box_corner = scene.vertices.size() - 4;
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(fitted.rgb[box_corner][c], kRed[c], 1);
+    // Seen by neither camera: the wall's top-left corner is out of both images.
+    EXPECT_EQ(fitted.support[wall_vertex(-10.0, -5.0)], 0.0f);
+    EXPECT_LT(fitted.coloured, scene.vertices.size());
 }
 
-TEST(ColourFusion, SilhouetteMarginKeepsAnOccludersEdgeOffTheSurfaceBehind) {
-    const TriangleMesh scene = wall_and_box();
+TEST(VertexColourFit, ReproducesColoursThatVaryLinearlyOverTheWall) {
+    // Colours linear in x and y are exactly what interpolation over the triangles can show: the
+    // fit must give them back at every vertex the pixels cover well.
+    const auto colour_at = [](double x, double y) {
+        return std::array<std::uint8_t, 3>{static_cast<std::uint8_t>(120 + 8 * x),
+                                           static_cast<std::uint8_t>(120 + 10 * y), 60};
+    };
+    const TriangleMesh scene = gridded_wall_and_box(colour_at);
+    const std::vector<CameraView> views = {
+        photograph(scene, {0, 0, 0}), photograph(scene, {6, 0, 0}), photograph(scene, {-4, 1, 2})};
+    const VertexColours fitted = fit_from(scene, views);
+    std::size_t checked = 0;
+    for (double x = -4.0; x <= 4.0; x += 0.5) {
+        for (double y = -2.5; y <= 2.5; y += 0.5) {
+            const std::size_t v = wall_vertex(x, y);
+            if (fitted.support[v] < 5.0f) continue;  // too few pixels to pin it down
+            for (int c = 0; c < 3; ++c) {
+                EXPECT_NEAR(fitted.rgb[v][c], scene.vertex_rgb[v][c], 2) << x << "," << y;
+            }
+            ++checked;
+        }
+    }
+    EXPECT_GT(checked, 100u);
+}
+
+TEST(VertexColourFit, SilhouetteMarginAndRangeLeavePixelsOut) {
+    const TriangleMesh scene = gridded_wall_and_box([](double, double) { return kBlue; });
     const std::vector<CameraView> views = {photograph(scene, {0, 0, 0})};
-    const std::vector<MeshRaster> rasters = {
-        rasterize_mesh(scene, views[0].camera, views[0].T_map_camera)};
-    // The box's edge (x = 1 m at z = 6) is at column 96.17; a wall point at x = 1.75 m lands in
-    // column 97, the first clear of the box, and one at x = 3 m far from it.
-    const std::vector<Eigen::Vector3d> points = {{1.75, 0.0, 10.0}, {3.0, 0.0, 10.0}};
-    const std::vector<Eigen::Vector3d> normals(2, Eigen::Vector3d(0, 0, -1));
-    const FusedColours fused = fuse_colours(points, normals, views, rasters);
-    EXPECT_EQ(fused.weight[0], 0.0f);  // too near the silhouette to trust
-    EXPECT_GT(fused.weight[1], 0.0f);
-    ColourFusionConfig no_margin;
+    const MeshRaster raster = rasterize_mesh(scene, views[0].camera, views[0].T_map_camera);
+    VertexColourFitConfig no_margin;
     no_margin.edge_margin_px = 0;
-    EXPECT_GT(fuse_colours(points, normals, views, rasters, no_margin).weight[0], 0.0f);
+    VertexColourFit all(scene, no_margin), margin(scene), near_only(scene, [] {
+        VertexColourFitConfig c;
+        c.max_range_m = 8.0;  // the box only
+        return c;
+    }());
+    all.add_view(views[0], raster);
+    margin.add_view(views[0], raster);
+    near_only.add_view(views[0], raster);
+    const auto hit_pixels = static_cast<std::size_t>(std::count_if(
+        raster.triangle.begin(), raster.triangle.end(), [](int t) { return t >= 0; }));
+    EXPECT_EQ(all.pixels_used(), hit_pixels);
+    // The wall's pixels next to the box's outline (a ring 1 px wide around a 34 px square).
+    EXPECT_GT(all.pixels_used() - margin.pixels_used(), 100u);
+    EXPECT_LT(all.pixels_used() - margin.pixels_used(), 200u);
+    EXPECT_EQ(near_only.solve().coloured, 4u);  // the box's corners
 }
 
-TEST(ColourFusion, GrazingAndFarViewsAreIgnored) {
+TEST(VertexColourFit, RejectsAnImageOfAnotherSize) {
     const TriangleMesh scene = wall_and_box();
-    const std::vector<CameraView> views = {photograph(scene, {0, 0, 0})};
-    const std::vector<MeshRaster> rasters = {
-        rasterize_mesh(scene, views[0].camera, views[0].T_map_camera)};
-    const std::vector<Eigen::Vector3d> points = {{3.0, 0.0, 10.0}};
-    // A normal almost perpendicular to the direction to the camera, (-3, 0, -10) / 10.44.
-    const Eigen::Vector3d grazing = Eigen::Vector3d(10.0, 0.0, -3.5).normalized();
-    EXPECT_EQ(fuse_colours(points, {grazing}, views, rasters).coloured, 0u);
-    EXPECT_EQ(fuse_colours(points, {Eigen::Vector3d(0.0, 0.0, -1.0)}, views, rasters).coloured, 1u);
-    ColourFusionConfig near_only;
-    near_only.max_range_m = 5.0;
-    EXPECT_EQ(fuse_colours(points, {{0.0, 0.0, -1.0}}, views, rasters, near_only).coloured, 0u);
-}
-
-TEST(ColourFusion, RejectsMismatchedInputs) {
-    const TriangleMesh scene = wall_and_box();
-    const std::vector<CameraView> views = {photograph(scene, {0, 0, 0})};
-    EXPECT_THROW(fuse_colours({{0, 0, 10}}, {}, views, {}), DataError);
+    CameraView view = photograph(scene, {0, 0, 0});
+    const MeshRaster raster = rasterize_mesh(scene, view.camera, view.T_map_camera);
+    view.image = RgbImage(10, 10);
+    VertexColourFit fit(scene);
+    EXPECT_THROW(fit.add_view(view, raster), DataError);
 }
 
 TEST(PhotometricScore, ARenderingOfTheTruthScoresInfinitelyAndAWrongColourFinitely) {
@@ -208,7 +253,9 @@ TEST(PhotometricScore, NaiveBaselineTakesTheNearestCameraWithoutOcclusion) {
     // Vertices on the wall behind the box: the nearest camera sees the box in their direction,
     // and the baseline, without an occlusion test, paints them red.
     TriangleMesh wall;
-    for (const Eigen::Vector3d& p : wall_points_behind_box())
+    for (const Eigen::Vector3d& p :
+         {Eigen::Vector3d(-0.5, -0.5, 10.0), Eigen::Vector3d(0.0, 0.0, 10.0),
+          Eigen::Vector3d(0.5, 0.5, 10.0)})
         wall.vertices.push_back(p.cast<float>());
     const std::vector<CameraView> views = {photograph(scene, {0, 0, 0}),
                                            photograph(scene, {6, 0, -3})};

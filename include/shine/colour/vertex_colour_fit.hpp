@@ -1,0 +1,77 @@
+// Vertex colours fitted to the camera images: the colours that, interpolated over the mesh's
+// triangles as a renderer does, best reproduce every pixel the mapped cameras took of the map.
+//
+// Each view's pixels are traced to the mesh's nearest triangle (MeshRaster's z-buffer: a wall
+// behind a parked car receives none of the car's pixels) at barycentric coordinates b; pixel y
+// then says b0 c0 + b1 c1 + b2 c2 = y about its triangle's vertex colours c. All pixels of all
+// views give the least-squares problem
+//     min_c  sum_pixels |A c - y|^2,
+// kept in its normal equations A^T A c = A^T y: one symmetric 3x3 block per triangle and one
+// sum per vertex, accumulated as views stream by (images never have to be in memory together;
+// the memory is the mesh's). The solve starts from the pixels' barycentric-weighted mean per
+// vertex (A^T y / A^T 1, the colour a splatting renderer would give) and takes a few damped
+// Jacobi steps c += relaxation * (A^T y - A^T A c) / diag(A^T A). A vertex's colour so averages
+// the image over the triangles around it, as a renderer weighs it: a point sample at the vertex
+// would pick one leaf of a hedge whose leaves the mesh cannot hold.
+//
+// Measured on the real drive's held-out images (docs/colour.md): the weighted mean of point
+// samples 17.24 dB, of footprint means 17.89 dB, splatting alone 17.97 dB, three Jacobi steps
+// 18.15 dB (more overfit the mapped views), against 16.66 dB for the nearest-camera baseline.
+//
+// Pixels are skipped when their surface is farther than max_range_m, and when a pixel within
+// edge_margin_px shows a surface nearer by more than the occlusion tolerance: at a silhouette
+// the small pose and timing errors of real data put an occluder's colour onto the surface behind.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "shine/colour/camera_view.hpp"
+#include "shine/colour/mesh_raster.hpp"
+#include "shine/geometry/triangle_mesh.hpp"
+
+namespace shine {
+
+struct VertexColourFitConfig {
+    double max_range_m = 60.0;            ///< pixels whose surface is farther are not used
+    int edge_margin_px = 1;               ///< silhouette margin (pixels, each way)
+    double depth_tolerance_m = 0.1;       ///< a neighbour nearer by this ...
+    double depth_tolerance_share = 0.05;  ///< ... plus this share of the depth marks a silhouette
+    int iterations = 3;                   ///< Jacobi steps after the weighted mean
+    double relaxation = 0.5;              ///< damping of each step
+};
+
+/// The fitted colours and how much image supports each vertex (sum of its barycentric weights
+/// over all pixels: 0 when no camera saw it).
+struct VertexColours {
+    std::vector<std::array<std::uint8_t, 3>> rgb;
+    std::vector<float> support;
+    std::size_t coloured = 0;  ///< vertices with support > 0
+};
+
+class VertexColourFit {
+  public:
+    /// Keeps a reference to `mesh` (it must outlive the fit).
+    VertexColourFit(const TriangleMesh& mesh, const VertexColourFitConfig& config = {});
+
+    /// Adds the pixels of `view`; `raster` is the mesh rasterised into it (rasterize_mesh).
+    /// Throws DataError when the image, the raster and the camera differ in size.
+    void add_view(const CameraView& view, const MeshRaster& raster);
+
+    /// Solves for the colours (see the file comment); vertices no pixel reached get colour 0.
+    VertexColours solve() const;
+
+    std::size_t pixels_used() const { return pixels_; }
+
+  private:
+    const TriangleMesh& mesh_;
+    VertexColourFitConfig config_;
+    std::vector<std::array<float, 6>> blocks_;  ///< per triangle: A^T A, upper triangle row-major
+    std::vector<Eigen::Vector3d> rhs_;          ///< per vertex: A^T y
+    std::vector<double> support_;               ///< per vertex: A^T 1 (sum of b)
+    std::size_t pixels_ = 0;
+};
+
+}  // namespace shine

@@ -1,0 +1,134 @@
+#include "shine/colour/vertex_colour_fit.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "shine/core/error.hpp"
+
+namespace shine {
+namespace vertex_colour_fit_internal {
+namespace {
+
+/// Index of (row, col), row <= col, in a symmetric 3x3 block's upper triangle.
+constexpr int kBlock[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+
+/// Whether a pixel within `margin` of (u, v) shows a surface nearer than `nearest_allowed_m`.
+bool near_silhouette(const MeshRaster& raster, int u, int v, int margin, double nearest_allowed_m) {
+    for (int dv = -margin; dv <= margin; ++dv) {
+        const int row = v + dv;
+        if (row < 0 || row >= raster.height) continue;
+        for (int du = -margin; du <= margin; ++du) {
+            const int col = u + du;
+            if (col < 0 || col >= raster.width) continue;
+            if (raster.depth_m[raster.index(col, row)] < nearest_allowed_m) return true;
+        }
+    }
+    return false;
+}
+
+}  // namespace
+}  // namespace vertex_colour_fit_internal
+
+VertexColourFit::VertexColourFit(const TriangleMesh& mesh, const VertexColourFitConfig& config)
+    : mesh_(mesh),
+      config_(config),
+      blocks_(mesh.triangles.size(), std::array<float, 6>{0, 0, 0, 0, 0, 0}),
+      rhs_(mesh.vertices.size(), Eigen::Vector3d::Zero()),
+      support_(mesh.vertices.size(), 0.0) {}
+
+void VertexColourFit::add_view(const CameraView& view, const MeshRaster& raster) {
+    using namespace vertex_colour_fit_internal;
+    if (raster.width != view.camera.width || raster.height != view.camera.height ||
+        view.image.width() != view.camera.width || view.image.height() != view.camera.height) {
+        throw DataError("colour fit: the image '" + view.image_path.string() + "' (" +
+                        std::to_string(view.image.width()) + "x" +
+                        std::to_string(view.image.height()) + "), its raster (" +
+                        std::to_string(raster.width) + "x" + std::to_string(raster.height) +
+                        ") and its camera (" + std::to_string(view.camera.width) + "x" +
+                        std::to_string(view.camera.height) + ") differ in size");
+    }
+    const Eigen::Isometry3d T_camera_map = view.T_map_camera.inverse();
+    const std::vector<std::uint8_t>& pixels = view.image.pixels();
+    // One pass in pixel order: pixels of one triangle add to the same block, so the sums are
+    // made sequentially (about 20 ms for a 1408 x 376 image) and do not depend on threads.
+    for (int v = 0; v < raster.height; ++v) {
+        for (int u = 0; u < raster.width; ++u) {
+            const std::size_t i = raster.index(u, v);
+            const std::int32_t t = raster.triangle[i];
+            if (t < 0) continue;
+            const double z = raster.depth_m[i];
+            if (z > config_.max_range_m) continue;
+            const double nearest_allowed =
+                z - (config_.depth_tolerance_m + config_.depth_tolerance_share * z);
+            if (near_silhouette(raster, u, v, std::max(0, config_.edge_margin_px),
+                                nearest_allowed)) {
+                continue;
+            }
+            // Barycentric coordinates where the pixel's ray meets the triangle's plane.
+            const Eigen::Vector3i& tri = mesh_.triangles[t];
+            const Eigen::Vector3d a = T_camera_map * mesh_.vertices[tri[0]].cast<double>();
+            const Eigen::Vector3d e1 = T_camera_map * mesh_.vertices[tri[1]].cast<double>() - a;
+            const Eigen::Vector3d e2 = T_camera_map * mesh_.vertices[tri[2]].cast<double>() - a;
+            const Eigen::Vector3d d = view.camera.pixel_ray(u, v);
+            const Eigen::Vector3d pv = d.cross(e2);
+            const double det = e1.dot(pv);
+            if (!(std::abs(det) > 1e-15)) continue;
+            const Eigen::Vector3d s = -a;  // the ray starts at the camera's centre
+            const double b1 = std::clamp(s.dot(pv) / det, 0.0, 1.0);
+            const double b2 = std::clamp(d.dot(s.cross(e1)) / det, 0.0, 1.0 - b1);
+            const double b[3] = {1.0 - b1 - b2, b1, b2};
+            const Eigen::Vector3d y(pixels[3 * i], pixels[3 * i + 1], pixels[3 * i + 2]);
+            std::array<float, 6>& block = blocks_[t];
+            for (int r = 0; r < 3; ++r) {
+                rhs_[tri[r]] += b[r] * y;
+                support_[tri[r]] += b[r];
+                for (int c = r; c < 3; ++c) block[kBlock[r][c]] += static_cast<float>(b[r] * b[c]);
+            }
+            ++pixels_;
+        }
+    }
+}
+
+VertexColours VertexColourFit::solve() const {
+    using namespace vertex_colour_fit_internal;
+    const std::size_t n = mesh_.vertices.size();
+    std::vector<Eigen::Vector3d> colour(n, Eigen::Vector3d::Zero());
+    std::vector<double> diagonal(n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (support_[i] > 0.0) colour[i] = rhs_[i] / support_[i];
+    }
+    for (std::size_t t = 0; t < blocks_.size(); ++t) {
+        for (int k = 0; k < 3; ++k) diagonal[mesh_.triangles[t][k]] += blocks_[t][kBlock[k][k]];
+    }
+    for (int step = 0; step < config_.iterations; ++step) {
+        std::vector<Eigen::Vector3d> residual = rhs_;  // A^T y - A^T A c
+        for (std::size_t t = 0; t < blocks_.size(); ++t) {
+            const Eigen::Vector3i& tri = mesh_.triangles[t];
+            for (int r = 0; r < 3; ++r) {
+                for (int c = 0; c < 3; ++c) {
+                    residual[tri[r]] -=
+                        static_cast<double>(blocks_[t][kBlock[r][c]]) * colour[tri[c]];
+                }
+            }
+        }
+        for (std::size_t i = 0; i < n; ++i) {
+            if (diagonal[i] > 0.0) colour[i] += config_.relaxation * residual[i] / diagonal[i];
+        }
+    }
+    VertexColours out;
+    out.rgb.assign(n, {0, 0, 0});
+    out.support.assign(n, 0.0f);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!(support_[i] > 0.0)) continue;
+        for (int c = 0; c < 3; ++c) {
+            out.rgb[i][c] =
+                static_cast<std::uint8_t>(std::lround(std::clamp(colour[i][c], 0.0, 255.0)));
+        }
+        out.support[i] = static_cast<float>(support_[i]);
+        ++out.coloured;
+    }
+    return out;
+}
+
+}  // namespace shine
