@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -13,26 +14,36 @@ namespace {
 
 constexpr int kBandRows = 8;  ///< rows per band of the parallel rasteriser
 
+/// A vertex projected into the image: pixel coordinates and 1/z (0: nearer than near_m).
+struct ScreenVertex {
+    double u = 0, v = 0, inv_z = 0;
+};
+
 /// A triangle's corners projected into the image: pixel coordinates and 1/z.
 struct ScreenTriangle {
     double u[3], v[3], inv_z[3];
     int row_min, row_max, col_min, col_max;  ///< pixels whose centres may lie inside
 };
 
-bool project_triangle(const Eigen::Vector3d* corners, const RigCamera& camera, double near_m,
-                      ScreenTriangle& out) {
+/// The triangle `tri` in the image, or false when a corner is nearer than near_m or no pixel
+/// centre can lie inside it.
+bool screen_triangle(const Eigen::Vector3i& tri, const std::vector<ScreenVertex>& screen,
+                     const RigCamera& camera, ScreenTriangle& out) {
     double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
     double v_min = u_min, v_max = -u_min;
     for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector3d& p = corners[k];
-        if (!(p.z() >= near_m)) return false;
-        out.inv_z[k] = 1.0 / p.z();
-        out.u[k] = camera.fx * p.x() * out.inv_z[k] + camera.cx;
-        out.v[k] = camera.fy * p.y() * out.inv_z[k] + camera.cy;
-        u_min = std::min(u_min, out.u[k]);
-        u_max = std::max(u_max, out.u[k]);
-        v_min = std::min(v_min, out.v[k]);
-        v_max = std::max(v_max, out.v[k]);
+        const ScreenVertex& s = screen[tri[k]];
+        if (!(s.inv_z > 0.0)) return false;
+        out.u[k] = s.u;
+        out.v[k] = s.v;
+        out.inv_z[k] = s.inv_z;
+        u_min = std::min(u_min, s.u);
+        u_max = std::max(u_max, s.u);
+        v_min = std::min(v_min, s.v);
+        v_max = std::max(v_max, s.v);
+    }
+    if (u_max < 0.0 || v_max < 0.0 || u_min > camera.width - 1.0 || v_min > camera.height - 1.0) {
+        return false;
     }
     out.col_min = static_cast<int>(std::max(0.0, std::ceil(u_min)));
     out.col_max = static_cast<int>(std::min(camera.width - 1.0, std::floor(u_max)));
@@ -75,19 +86,6 @@ void rasterize_rows(const ScreenTriangle& t, std::int32_t id, int row_begin, int
 }  // namespace
 }  // namespace mesh_raster_internal
 
-std::vector<Eigen::Vector3d> vertices_in_camera(const TriangleMesh& mesh,
-                                                const Eigen::Isometry3d& T_map_camera) {
-    const Eigen::Isometry3d T_camera_map = T_map_camera.inverse();
-    std::vector<Eigen::Vector3d> out(mesh.vertices.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out.size(), 4096),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                              out[i] = T_camera_map * mesh.vertices[i].cast<double>();
-                          }
-                      });
-    return out;
-}
-
 MeshRaster rasterize_mesh(const TriangleMesh& mesh, const RigCamera& camera,
                           const Eigen::Isometry3d& T_map_camera, double near_m) {
     using namespace mesh_raster_internal;
@@ -99,25 +97,38 @@ MeshRaster rasterize_mesh(const TriangleMesh& mesh, const RigCamera& camera,
     raster.triangle.assign(pixels, -1);
     if (mesh.triangles.empty() || pixels == 0) return raster;
 
-    const std::vector<Eigen::Vector3d> corners_camera = vertices_in_camera(mesh, T_map_camera);
+    // Every vertex projected once; triangles only keep the rows they span (-1: not in view),
+    // so a view costs the mesh's size in bytes, not a copy of it.
+    const Eigen::Isometry3d T_camera_map = T_map_camera.inverse();
+    std::vector<ScreenVertex> screen(mesh.vertices.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, screen.size(), 4096),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              const Eigen::Vector3d p =
+                                  T_camera_map * mesh.vertices[i].cast<double>();
+                              if (!(p.z() >= near_m)) continue;
+                              ScreenVertex& s = screen[i];
+                              s.inv_z = 1.0 / p.z();
+                              s.u = camera.fx * p.x() * s.inv_z + camera.cx;
+                              s.v = camera.fy * p.y() * s.inv_z + camera.cy;
+                          }
+                      });
     const std::size_t n = mesh.triangles.size();
-    std::vector<ScreenTriangle> screen(n);
-    std::vector<std::uint8_t> visible(n, 0);
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-            for (std::size_t t = r.begin(); t != r.end(); ++t) {
-                const Eigen::Vector3i& tri = mesh.triangles[t];
-                const Eigen::Vector3d corners[3] = {corners_camera[tri[0]], corners_camera[tri[1]],
-                                                    corners_camera[tri[2]]};
-                visible[t] = project_triangle(corners, camera, near_m, screen[t]);
-            }
-        });
+    std::vector<std::array<std::int16_t, 2>> rows(n, {-1, -1});  // kMaxSide fits in int16
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<
+                                                                       std::size_t>& r) {
+        ScreenTriangle t;
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            if (!screen_triangle(mesh.triangles[i], screen, camera, t)) continue;
+            rows[i] = {static_cast<std::int16_t>(t.row_min), static_cast<std::int16_t>(t.row_max)};
+        }
+    });
     // Bin the triangles by band of rows (counting sort keeps them in index order per band).
     const int bands = (camera.height + kBandRows - 1) / kBandRows;
     std::vector<std::size_t> band_start(static_cast<std::size_t>(bands) + 1, 0);
     for (std::size_t t = 0; t < n; ++t) {
-        if (!visible[t]) continue;
-        for (int b = screen[t].row_min / kBandRows; b <= screen[t].row_max / kBandRows; ++b) {
+        if (rows[t][0] < 0) continue;
+        for (int b = rows[t][0] / kBandRows; b <= rows[t][1] / kBandRows; ++b) {
             ++band_start[static_cast<std::size_t>(b) + 1];
         }
     }
@@ -125,18 +136,20 @@ MeshRaster rasterize_mesh(const TriangleMesh& mesh, const RigCamera& camera,
     std::vector<std::int32_t> binned(band_start.back());
     std::vector<std::size_t> fill(band_start.begin(), band_start.end() - 1);
     for (std::size_t t = 0; t < n; ++t) {
-        if (!visible[t]) continue;
-        for (int b = screen[t].row_min / kBandRows; b <= screen[t].row_max / kBandRows; ++b) {
+        if (rows[t][0] < 0) continue;
+        for (int b = rows[t][0] / kBandRows; b <= rows[t][1] / kBandRows; ++b) {
             binned[fill[b]++] = static_cast<std::int32_t>(t);
         }
     }
     tbb::parallel_for(tbb::blocked_range<int>(0, bands, 1), [&](const tbb::blocked_range<int>& r) {
+        ScreenTriangle t;
         for (int b = r.begin(); b != r.end(); ++b) {
             const int row_begin = b * kBandRows;
             const int row_end = std::min(camera.height, row_begin + kBandRows);
             for (std::size_t k = band_start[b]; k < band_start[b + 1]; ++k) {
-                const std::int32_t t = binned[k];
-                rasterize_rows(screen[t], t, row_begin, row_end, raster);
+                const std::int32_t id = binned[k];
+                screen_triangle(mesh.triangles[id], screen, camera, t);
+                rasterize_rows(t, id, row_begin, row_end, raster);
             }
         }
     });

@@ -36,8 +36,4 @@ struct MeshRaster {
 MeshRaster rasterize_mesh(const TriangleMesh& mesh, const RigCamera& camera,
                           const Eigen::Isometry3d& T_map_camera, double near_m = 0.3);
 
-/// The vertices of `mesh` in the optical frame of a camera at `T_map_camera`.
-std::vector<Eigen::Vector3d> vertices_in_camera(const TriangleMesh& mesh,
-                                                const Eigen::Isometry3d& T_map_camera);
-
 }  // namespace shine
