@@ -465,6 +465,62 @@ MapOptions with_continue_mode(const MapOptions& given) {
     return opt;
 }
 
+/// `--from` with no new scan (DATA's scans all before --first-frame): OUT gets the old map
+/// unchanged (write_map_without_new_scans), scored against the reference as any run's, and a
+/// stats.json with 0 new scans and corners (docs/continue.md).
+int map_without_new_scans(const MapOptions& opt, const MapperConfig& config, const fs::path& data,
+                          NeuralSdf old_sdf, const fs::path& old_map_file, nlohmann::json from_json,
+                          std::chrono::steady_clock::time_point start_total) {
+    const fs::path ref = resolve_reference(data, opt.ref_path, opt.no_eval);
+    const fs::path out = opt.out;
+    if (fs::exists(checkpoint_file(out))) {
+        throw ConfigError("'" + checkpoint_file(out).string() +
+                          "' holds an interrupted run: continue it with `shine map --resume " +
+                          out.string() + "`, or delete that file to start again from scratch");
+    }
+    const MapProducts products = write_map_without_new_scans(config, old_sdf, old_map_file, out);
+    std::printf(
+        "nothing new mapped: '%s' has %d scans, all before --first-frame %d; the map of '%s' is "
+        "written unchanged\n",
+        data.c_str(), opt.first_frame, opt.first_frame, old_map_file.c_str());
+    from_json["poses"] = "none";
+    from_json["new_scans"] = 0;
+    from_json["new_corners"] = 0;
+    nlohmann::json json;
+    json["data"] = data.string();
+    json["mode"] = opt.mode;
+    json["resumed"] = false;
+    json["from"] = from_json;
+    json["frames"] = 0;
+    json["rays"] = 0;
+    json["threads"] = config.threads;
+    json["leaf_size_m"] = config.octree.leaf_size_m;
+    json["scene"] = to_string(config.resolved_scene());
+    json["iterations"] = 0;
+    json["incremental"] = {{"decoder_weights", old_map_file.string()}};
+    add_product_stats(json, old_sdf, products, out);
+    json["seconds"] = {{"save_map", products.save_seconds},
+                       {"bake", products.bake_seconds},
+                       {"mesh", products.mesh_seconds},
+                       {"total", seconds_since(start_total)}};
+    std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
+                (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), products.mesh.triangles);
+    if (!ref.empty()) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const EvalConfig eval_config =
+            eval_config_for_threshold(scene_defaults(config.resolved_scene()).eval_threshold_m);
+        const MeshMetrics metrics =
+            evaluate_meshes(read_ply_mesh(out / "mesh.ply"), read_ply_mesh(ref), eval_config);
+        json["eval"] = nlohmann::json::parse(metrics_to_json(metrics));
+        json["eval"]["reference"] = ref.string();
+        std::printf("accuracy against %s:\n%s", ref.c_str(), format_metrics(metrics).c_str());
+        json["seconds"]["eval"] = seconds_since(t0);
+    }
+    json["peak_rss_bytes"] = peak_rss_bytes();
+    write_json(out / "stats.json", json);
+    return 0;
+}
+
 int run_map(const MapOptions& given_options) {
     const auto start_total = std::chrono::steady_clock::now();
     const bool resuming = !given_options.resume_dir.empty();
@@ -497,7 +553,9 @@ int run_map(const MapOptions& given_options) {
     if (!estimate_option) seq_options.poses_path = opt.poses_path;
     seq_options.topic = opt.topic;
     seq_options.poses = PoseFileUse::kIfPresent;
-    ScanSequence selected = ScanSequence::open(data, seq_options);
+    // --from: --first-frame one past DATA's last scan selects none (nothing new since the old map).
+    ScanSequence selected = continuing ? open_continued_selection(data, seq_options)
+                                       : ScanSequence::open(data, seq_options);
     // Times from the azimuth under `auto` only where they were measured to win: batch mode with
     // given poses, refined (the refinement registers the deskewed scans; at given poses, fitted
     // to the skewed scans, deskewing lost points on the real drive, and with estimated poses it
@@ -521,6 +579,10 @@ int run_map(const MapOptions& given_options) {
         from_json = {{"map", fs::absolute(old_map_file).string()},
                      {"corners", old_map->sdf.octree.num_corners()},
                      {"poses", "data"}};
+        if (selected.size() == 0) {
+            return map_without_new_scans(opt, config, data, std::move(old_map->sdf), old_map_file,
+                                         from_json, start_total);
+        }
         if (estimate_option || !selected.has_poses()) {
             if (opt.holdout_every > 0) {
                 throw ConfigError(
@@ -759,6 +821,7 @@ int run_map(const MapOptions& given_options) {
     json["mode"] = opt.mode;
     json["resumed"] = resuming;
     if (continuing) {
+        from_json["new_scans"] = stats.frames;
         from_json["new_corners"] = sdf.octree.num_corners() - incremental_map->mapper->start_rows();
         json["from"] = from_json;
     }
@@ -989,8 +1052,9 @@ const RegisterCommand kRegister(20, [](CLI::App& app, Action& action) {
                     "DATA's scans, in incremental mode: its features (held by the importance "
                     "weights), decoder (frozen) and world frame; DATA's poses are in that frame, "
                     "or without poses each scan is localised in the map first (scans not "
-                    "localised are skipped). Needs the settings the map was made with "
-                    "(docs/continue.md)");
+                    "localised are skipped). Needs the settings the map was made with. "
+                    "--first-frame one past DATA's last scan selects no new scan: the map is "
+                    "written again unchanged (docs/continue.md)");
     cmd->add_option("--resume", opt->resume_dir,
                     "Continue the run stopped (Ctrl-C, SIGTERM) with its checkpoint in this "
                     "output directory, to the result the uninterrupted run gives; its settings "

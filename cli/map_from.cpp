@@ -2,13 +2,16 @@
 
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <vector>
 
 #include "saved_map.hpp"
+#include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/kitti.hpp"
+#include "shine/mapper/incremental_mapper.hpp"
 #include "shine/mapper/map_localizer.hpp"
 
 namespace shine::cli {
@@ -98,6 +101,42 @@ ScanSequence localize_in_continued_map(const ScanSequence& sequence, const Neura
                         "map's world frame (a pose file)");
     }
     return sequence.subset(localized).with_poses(poses);
+}
+
+ScanSequence open_continued_selection(const fs::path& data, const ScanSequenceOptions& options) {
+    try {
+        return ScanSequence::open(data, options);
+    } catch (const ConfigError&) {
+        if (options.first_frame < 1 || options.last_frame != -1 || options.frame_step < 1) throw;
+        ScanSequenceOptions all = options;
+        all.first_frame = 0;
+        std::optional<ScanSequence> scans;
+        try {
+            scans = ScanSequence::open(data, all);
+        } catch (const Error&) {
+            // The range's own error (rethrown below) is the one to report.
+        }
+        if (!scans || scans->size() != static_cast<std::size_t>(options.first_frame)) throw;
+        return scans->subset({});
+    }
+}
+
+MapProducts write_map_without_new_scans(const MapperConfig& config, NeuralSdf& sdf,
+                                        const fs::path& map_file, const fs::path& out_dir) {
+    // The set-up of map_sequence_incremental's continued run, so that the map is checked against
+    // the run's settings as any continued map is, and stored with the same configuration.
+    MapperConfig mapper_config = config;
+    mapper_config.finalize();
+    mapper_config.incremental.decoder_weights = "none";  // the old map's decoder, not loaded
+    IncrementalMapper mapper(mapper_config);
+    mapper.start_from(std::move(sdf), map_file.string());
+    mapper.release_training_state();
+    MapperConfig stored = config;
+    stored.finalize();
+    stored.incremental.decoder_weights = map_file.string();
+    sdf = std::move(mapper.sdf());
+    ensure_directory(out_dir);
+    return write_map_products(sdf, stored, out_dir);
 }
 
 }  // namespace shine::cli

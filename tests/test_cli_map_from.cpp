@@ -3,7 +3,8 @@
 // lane scores close to one map made from both drives at once and keeps the old part; the old
 // map's decoder is the new map's, unchanged; a drive without poses is localised in the old map
 // first; an incompatible, missing or damaged old map and --mode batch are refused with messages
-// naming the file and the setting.
+// naming the file and the setting; with no new scan (--first-frame one past the last) the old map
+// is written again unchanged, and without --from that empty selection is refused.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -136,6 +137,7 @@ TEST(CliMapFrom, ContinuedStreetScoresNearTheJointMapAndKeepsTheOldPart) {
     EXPECT_EQ(stats["from"]["poses"], "data");
     EXPECT_EQ(stats["from"]["corners"].get<std::size_t>(), before.sdf.octree.num_corners());
     EXPECT_GT(stats["from"]["new_corners"].get<std::size_t>(), 0u);
+    EXPECT_EQ(stats["from"]["new_scans"], 6);
     EXPECT_EQ(after.sdf.octree.num_corners(),
               before.sdf.octree.num_corners() + stats["from"]["new_corners"].get<std::size_t>());
     // The old map's decoder, frozen: not the pretrained one, not retrained.
@@ -161,6 +163,82 @@ TEST(CliMapFrom, DriveWithoutPosesIsLocalisedInTheOldMap) {
     EXPECT_EQ(stats["frames"], stats["from"]["localize"]["localised"]);
 }
 
+/// `path`'s bytes with the random file UUID of a .vdb header blanked: bytes 21-56, after the
+/// magic (8), file version (4), library version (8) and has-offsets flag (1).
+std::string vdb_bytes_but_uuid(const fs::path& path) {
+    constexpr std::size_t kUuidBegin = 21, kUuidChars = 36;
+    std::string bytes = read_text(path);
+    if (bytes.size() >= kUuidBegin + kUuidChars)
+        bytes.replace(kUuidBegin, kUuidChars, kUuidChars, '-');
+    return bytes;
+}
+
+/// `yaml` without its incremental.decoder_weights line.
+std::string without_decoder_weights(const std::string& yaml) {
+    const std::size_t at = yaml.find("decoder_weights:");
+    if (at == std::string::npos) return yaml;
+    const std::size_t end = yaml.find('\n', at);
+    return yaml.substr(0, at) + (end == std::string::npos ? "" : yaml.substr(end));
+}
+
+TEST(CliMapFrom, NoNewScansWritesTheOldMapUnchanged) {
+    const fs::path d1 = first_drive();
+    const fs::path old = test_dir() / "old";
+    CliResult r = map(d1, old, "--no-eval");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    // The drive's folder has not grown since: its 8 scans are all before --first-frame 8.
+    const fs::path same = test_dir() / "same";
+    r = map_from(d1, old, same, "--first-frame 8 --ref " + quoted(d1 / "gt_mesh.ply"));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("nothing new mapped"), std::string::npos) << r.output;
+
+    // The features, decoder and origin exactly; the stored configuration is this run's, which
+    // differs from the old run's only in naming the old map as its decoder's source.
+    const shine::LoadedMap before = shine::load_neural_map(old / "map.vdb");
+    const shine::LoadedMap after = shine::load_neural_map(same / "map.vdb");
+    EXPECT_EQ(after.sdf.octree.num_corners(), before.sdf.octree.num_corners());
+    EXPECT_EQ(after.sdf.octree.features().to_floats(), before.sdf.octree.features().to_floats());
+    EXPECT_EQ(after.sdf.decoder.params(), before.sdf.decoder.params());
+    EXPECT_EQ(after.sdf.origin_world_m, before.sdf.origin_world_m);
+    EXPECT_NE(after.config_text.find("decoder_weights: " + (old / "map.vdb").string()),
+              std::string::npos)
+        << after.config_text;
+    EXPECT_EQ(without_decoder_weights(after.config_text),
+              without_decoder_weights(before.config_text));
+    // Baked and meshed as the old run did: the same files, but for the .vdb file's UUID.
+    const std::string mesh = read_text(same / "mesh.ply");
+    ASSERT_FALSE(mesh.empty());
+    EXPECT_TRUE(mesh == read_text(old / "mesh.ply")) << "meshes differ";
+    EXPECT_TRUE(vdb_bytes_but_uuid(same / "surface.vdb") == vdb_bytes_but_uuid(old / "surface.vdb"))
+        << "level sets differ";
+
+    const nlohmann::json stats = read_json(same / "stats.json");
+    EXPECT_EQ(stats["frames"], 0);
+    EXPECT_EQ(stats["from"]["new_scans"], 0);
+    EXPECT_EQ(stats["from"]["new_corners"], 0);
+    EXPECT_EQ(stats["from"]["corners"].get<std::size_t>(), before.sdf.octree.num_corners());
+    EXPECT_EQ(fs::path(stats["from"]["map"].get<std::string>()), fs::absolute(old / "map.vdb"));
+    EXPECT_EQ(stats["mesh"]["triangles"], read_json(old / "stats.json")["mesh"]["triangles"]);
+    EXPECT_TRUE(stats.contains("eval")) << stats.dump(2);
+
+    // Past the end is still a range error, with --from too.
+    r = map_from(d1, old, test_dir() / "past", "--first-frame 9 --no-eval");
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("first_frame 9"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(test_dir() / "past" / "map.vdb"));
+}
+
+TEST(CliMapFrom, EmptySelectionWithoutFromIsRefusedNamingTheRange) {
+    const fs::path d1 = first_drive();
+    const fs::path out = test_dir() / "out";
+    const CliResult r = map(d1, out, "--first-frame 8 --no-eval");
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("first_frame 8"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("0..7"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(d1.string()), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out / "map.vdb"));
+}
+
 TEST(CliMapFrom, RefusesAnIncompatibleMapNamingTheSetting) {
     const fs::path d1 = first_drive();
     const fs::path old = test_dir() / "coarse";
@@ -172,6 +250,11 @@ TEST(CliMapFrom, RefusesAnIncompatibleMapNamingTheSetting) {
     EXPECT_NE(r.output.find("map.leaf_size_m"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find((old / "map.vdb").string()), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("0.4"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(test_dir() / "continued" / "map.vdb"));
+    // With no new scan too: the map is not written again with other settings.
+    r = map_from(d1, old, test_dir() / "continued", "--first-frame 8 --no-eval");
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("map.leaf_size_m"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(test_dir() / "continued" / "map.vdb"));
 }
 
