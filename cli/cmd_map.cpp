@@ -556,6 +556,9 @@ int run_map(const MapOptions& given_options) {
     // --from: --first-frame one past DATA's last scan selects none (nothing new since the old map).
     ScanSequence selected = continuing ? open_continued_selection(data, seq_options)
                                        : ScanSequence::open(data, seq_options);
+    // Camera images colour the surface; a broken calibration is named before any mapping
+    // (and before the sweep test reads scans).
+    const std::optional<CameraRig> cameras = find_sequence_cameras(selected, opt.quiet || resuming);
     // Times from the azimuth under `auto` only where they were measured to win: batch mode with
     // given poses, refined (the refinement registers the deskewed scans; at given poses, fitted
     // to the skewed scans, deskewing lost points on the real drive, and with estimated poses it
@@ -565,8 +568,6 @@ int run_map(const MapOptions& given_options) {
          selected.has_poses())) {
         selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
     }
-    // Camera images colour the surface; a broken calibration is named before any mapping.
-    const std::optional<CameraRig> cameras = find_sequence_cameras(selected, opt.quiet || resuming);
     // --from: the old map, read before anything is written (a missing or damaged map is named
     // at once). Scans without poses (or with --poses estimate) are localised in it first and
     // mapped at those poses; with poses of their own, those are in its world frame.
