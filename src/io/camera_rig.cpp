@@ -46,29 +46,6 @@ std::string rotation_problem(const Eigen::Matrix3d& R) {
            ", det(R) = " + number_text(det) + "; expected orthonormal within 1e-3, det +1)";
 }
 
-/// The blank-separated numbers of `text`; false with `bad` set to the first word that is not one.
-bool parse_camera_numbers(std::string_view text, std::vector<double>* values, std::string* bad) {
-    values->clear();
-    std::size_t i = 0;
-    while (i < text.size()) {
-        while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
-        const std::size_t start = i;
-        while (i < text.size() && !std::isspace(static_cast<unsigned char>(text[i]))) ++i;
-        if (i == start) break;
-        const char* first = text.data() + start;
-        const char* last = text.data() + i;
-        if (*first == '+') ++first;  // from_chars rejects a leading '+'
-        double v = 0.0;
-        const auto r = std::from_chars(first, last, v);
-        if (first == last || r.ec != std::errc() || r.ptr != last) {
-            *bad = printable_excerpt(text.substr(start, i - start));
-            return false;
-        }
-        values->push_back(v);
-    }
-    return true;
-}
-
 /// An integral pixel count in [1, RgbImage::kMaxSide], or -1.
 int side_in_pixels(double v) {
     if (!(v >= 1.0 && v <= RgbImage::kMaxSide) || v != std::floor(v)) return -1;
@@ -112,7 +89,7 @@ std::vector<double> kitti360_key(std::string_view text, const fs::path& source,
         }
         found_line = line_number;
         std::string bad;
-        if (!parse_camera_numbers(line.substr(colon + 1), &values, &bad)) {
+        if (!parse_number_words(line.substr(colon + 1), &values, &bad)) {
             fail_kitti360(source, where + ": '" + bad + "' is not a number; expected " +
                                       std::to_string(count) + " numbers, " + meaning);
         }
@@ -247,7 +224,7 @@ Eigen::Isometry3d parse_kitti360_cam_to_velo(std::string_view text, const fs::pa
     const std::string expected = "expected 12 numbers, row-major 3x4 [R|t], camera 0 -> LiDAR";
     std::vector<double> v;
     std::string bad;
-    if (!parse_camera_numbers(text, &v, &bad)) {
+    if (!parse_number_words(text, &v, &bad)) {
         fail_kitti360(source, "'" + bad + "' is not a number; " + expected);
     }
     if (v.size() != 12) {

@@ -1,6 +1,8 @@
 #include "shine/io/file_contents.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <charconv>
 #include <cstdio>
 #include <fstream>
 
@@ -48,6 +50,28 @@ std::string printable_excerpt(std::string_view text, std::size_t max_chars) {
     }
     if (text.size() > max_chars) out += "...";
     return out;
+}
+
+bool parse_number_words(std::string_view text, std::vector<double>* values, std::string* bad) {
+    values->clear();
+    std::size_t i = 0;
+    while (i < text.size()) {
+        while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+        const std::size_t start = i;
+        while (i < text.size() && !std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+        if (i == start) break;
+        const char* first = text.data() + start;
+        const char* last = text.data() + i;
+        if (*first == '+') ++first;  // from_chars rejects a leading '+'
+        double v = 0.0;
+        const auto r = std::from_chars(first, last, v);
+        if (first == last || r.ec != std::errc() || r.ptr != last) {
+            *bad = printable_excerpt(text.substr(start, i - start));
+            return false;
+        }
+        values->push_back(v);
+    }
+    return true;
 }
 
 }  // namespace shine

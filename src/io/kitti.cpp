@@ -28,30 +28,6 @@ namespace {
                   ": " + what);
 }
 
-/// Splits `line` at blanks and parses every word as a double. Returns false and sets `bad` to the
-/// offending word if one is not a number.
-bool parse_numbers(std::string_view line, std::vector<double>* values, std::string* bad) {
-    values->clear();
-    std::size_t i = 0;
-    while (i < line.size()) {
-        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
-        const std::size_t start = i;
-        while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) ++i;
-        if (i == start) break;
-        const char* first = line.data() + start;
-        const char* last = line.data() + i;
-        if (*first == '+') ++first;  // from_chars rejects a leading '+'
-        double v = 0.0;
-        const auto r = std::from_chars(first, last, v);
-        if (first == last || r.ec != std::errc() || r.ptr != last) {
-            *bad = printable_excerpt(line.substr(start, i - start));
-            return false;
-        }
-        values->push_back(v);
-    }
-    return true;
-}
-
 /// Builds [R|t] from 12 row-major numbers, checking finiteness and orthonormality of R.
 Eigen::Isometry3d pose_from_row_major(const std::vector<double>& v, const fs::path& path,
                                       const std::string& where) {
@@ -197,7 +173,7 @@ std::vector<Eigen::Isometry3d> parse_kitti_poses(std::string_view data, const fs
         lines = line_no;
         if (is_blank(line)) return;
         const std::string where = "line " + std::to_string(line_no);
-        if (!parse_numbers(line, &values, &bad)) {
+        if (!parse_number_words(line, &values, &bad)) {
             fail(path, where, "'" + bad + "' is not a number");
         }
         if (values.size() != 12) {
@@ -252,7 +228,7 @@ Eigen::Isometry3d parse_kitti_calib_tr(std::string_view data, const fs::path& pa
         if (key != "Tr" && key != "Tr_velo_to_cam") return;
         const std::string where = "line " + std::to_string(line_no);
         if (found) fail(path, where, "second Tr line");
-        if (!parse_numbers(line.substr(colon + 1), &values, &bad)) {
+        if (!parse_number_words(line.substr(colon + 1), &values, &bad)) {
             fail(path, where, "'" + bad + "' is not a number");
         }
         if (values.size() != 12) {

@@ -1,10 +1,11 @@
-// Reading a whole input file into memory, with the checks every reader needs first, and the
-// quoting every reader's error messages use.
+// Reading a whole input file into memory, with the checks every reader needs first, the
+// quoting every reader's error messages use, and the number lists of text calibration files.
 #pragma once
 
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace shine {
 
@@ -22,5 +23,10 @@ std::string read_file_contents(const std::filesystem::path& path, const std::str
 /// anything past `max_chars` is cut and marked with "...", so a binary file given to a text
 /// reader gives a short, readable message.
 std::string printable_excerpt(std::string_view text, std::size_t max_chars = 40);
+
+/// Parses every blank-separated word of `text` as a double (a leading '+' allowed) into
+/// `values`. Returns false with `bad` set to printable_excerpt() of the first word that is not
+/// a number.
+bool parse_number_words(std::string_view text, std::vector<double>* values, std::string* bad);
 
 }  // namespace shine
