@@ -156,4 +156,26 @@ MeshRaster rasterize_mesh(const TriangleMesh& mesh, const RigCamera& camera,
     return raster;
 }
 
+PixelTriangleHit pixel_triangle_hit(const TriangleMesh& mesh, std::int32_t triangle,
+                                    const RigCamera& camera, const Eigen::Isometry3d& T_camera_map,
+                                    int u, int v) {
+    PixelTriangleHit hit;
+    const Eigen::Vector3i& tri = mesh.triangles[triangle];
+    const Eigen::Vector3d a = T_camera_map * mesh.vertices[tri[0]].cast<double>();
+    hit.edge1 = T_camera_map * mesh.vertices[tri[1]].cast<double>() - a;
+    hit.edge2 = T_camera_map * mesh.vertices[tri[2]].cast<double>() - a;
+    hit.ray = camera.pixel_ray(u, v);
+    const Eigen::Vector3d pv = hit.ray.cross(hit.edge2);
+    const double det = hit.edge1.dot(pv);
+    if (!(std::abs(det) > 1e-15)) return hit;
+    const Eigen::Vector3d s = -a;  // the ray starts at the camera's centre
+    const Eigen::Vector3d qv = s.cross(hit.edge1);
+    const double w1 = std::clamp(s.dot(pv) / det, 0.0, 1.0);
+    const double w2 = std::clamp(hit.ray.dot(qv) / det, 0.0, 1.0 - w1);
+    hit.weights = {1.0 - w1 - w2, w1, w2};
+    hit.crosses_plane = true;
+    hit.distance_m = hit.edge2.dot(qv) / det;
+    return hit;
+}
+
 }  // namespace shine

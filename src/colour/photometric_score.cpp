@@ -47,23 +47,9 @@ ColourRendering render_vertex_colours(const TriangleMesh& mesh,
                 for (int u = 0; u < camera.width; ++u) {
                     const std::int32_t t = raster.triangle[raster.index(u, v)];
                     if (t < 0) continue;
-                    // Barycentric coordinates of the pixel ray's hit on the triangle's plane.
                     const Eigen::Vector3i& tri = mesh.triangles[t];
-                    const Eigen::Vector3d a = T_camera_map * mesh.vertices[tri[0]].cast<double>();
-                    const Eigen::Vector3d b = T_camera_map * mesh.vertices[tri[1]].cast<double>();
-                    const Eigen::Vector3d c = T_camera_map * mesh.vertices[tri[2]].cast<double>();
-                    const Eigen::Vector3d d = camera.pixel_ray(u, v);
-                    const Eigen::Vector3d e1 = b - a, e2 = c - a;
-                    const Eigen::Vector3d pv = d.cross(e2);
-                    const double det = e1.dot(pv);
-                    double w1 = 1.0 / 3.0, w2 = 1.0 / 3.0;
-                    if (std::abs(det) > 1e-15) {
-                        const Eigen::Vector3d s = -a;  // ray origin at the camera centre
-                        w1 = std::clamp(s.dot(pv) / det, 0.0, 1.0);
-                        const Eigen::Vector3d qv = s.cross(e1);
-                        w2 = std::clamp(d.dot(qv) / det, 0.0, 1.0 - w1);
-                    }
-                    const double w0 = 1.0 - w1 - w2;
+                    const auto [w0, w1, w2] =
+                        pixel_triangle_hit(mesh, t, camera, T_camera_map, u, v).weights;
                     Rgb pixel;
                     std::uint8_t* channels[3] = {&pixel.r, &pixel.g, &pixel.b};
                     for (int k = 0; k < 3; ++k) {

@@ -72,22 +72,12 @@ void VertexColourFit::add_view(const CameraView& view, const MeshRaster& raster)
                                         nearest_allowed)) {
                         continue;
                     }
-                    // Barycentric coordinates where the pixel's ray meets the triangle's plane.
-                    const Eigen::Vector3i& tri = mesh_.triangles[t];
-                    const Eigen::Vector3d a = T_camera_map * mesh_.vertices[tri[0]].cast<double>();
-                    const Eigen::Vector3d e1 =
-                        T_camera_map * mesh_.vertices[tri[1]].cast<double>() - a;
-                    const Eigen::Vector3d e2 =
-                        T_camera_map * mesh_.vertices[tri[2]].cast<double>() - a;
-                    const Eigen::Vector3d d = view.camera.pixel_ray(u, v);
-                    const Eigen::Vector3d pv = d.cross(e2);
-                    const double det = e1.dot(pv);
-                    if (!(std::abs(det) > 1e-15)) continue;
-                    const Eigen::Vector3d s = -a;  // the ray starts at the camera's centre
-                    const double b1 = std::clamp(s.dot(pv) / det, 0.0, 1.0);
-                    const double b2 = std::clamp(d.dot(s.cross(e1)) / det, 0.0, 1.0 - b1);
-                    bary[i] = {static_cast<float>(1.0 - b1 - b2), static_cast<float>(b1),
-                               static_cast<float>(b2)};
+                    const PixelTriangleHit hit =
+                        pixel_triangle_hit(mesh_, t, view.camera, T_camera_map, u, v);
+                    if (!hit.crosses_plane) continue;
+                    bary[i] = {static_cast<float>(hit.weights[0]),
+                               static_cast<float>(hit.weights[1]),
+                               static_cast<float>(hit.weights[2])};
                 }
             }
         });

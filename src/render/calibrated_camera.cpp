@@ -88,29 +88,17 @@ CalibratedCameraRendering render_calibrated_camera(const TriangleMesh& mesh,
                 const std::size_t i = raster.index(u, v);
                 const std::int32_t t = raster.triangle[i];
                 if (t < 0) continue;
-                // The pixel ray's hit on the triangle's plane (Moller-Trumbore from the camera
-                // centre), with the same operations as render_vertex_colours so that the 8-bit
-                // colours are its own.
+                // The pixel ray's hit on the triangle's plane, as render_vertex_colours takes it,
+                // so that the 8-bit colours are its own.
                 const Eigen::Vector3i& tri = mesh.triangles[t];
-                const Eigen::Vector3d a = T_camera_map * mesh.vertices[tri[0]].cast<double>();
-                const Eigen::Vector3d b = T_camera_map * mesh.vertices[tri[1]].cast<double>();
-                const Eigen::Vector3d c = T_camera_map * mesh.vertices[tri[2]].cast<double>();
-                const Eigen::Vector3d d = camera.pixel_ray(u, v);
-                const Eigen::Vector3d e1 = b - a, e2 = c - a;
-                const Eigen::Vector3d pv = d.cross(e2);
-                const double det = e1.dot(pv);
-                double w1 = 1.0 / 3.0, w2 = 1.0 / 3.0;
+                const PixelTriangleHit hit =
+                    pixel_triangle_hit(mesh, t, camera, T_camera_map, u, v);
+                const Eigen::Vector3d& d = hit.ray;
+                const Eigen::Vector3d& e1 = hit.edge1;
+                const Eigen::Vector3d& e2 = hit.edge2;
                 double distance_m = static_cast<double>(raster.depth_m[i]) / d.z();
-                if (std::abs(det) > 1e-15) {
-                    const Eigen::Vector3d s = -a;  // ray origin at the camera centre
-                    w1 = std::clamp(s.dot(pv) / det, 0.0, 1.0);
-                    const Eigen::Vector3d qv = s.cross(e1);
-                    w2 = std::clamp(d.dot(qv) / det, 0.0, 1.0 - w1);
-                    const double t_m = e2.dot(qv) / det;
-                    if (t_m > 0.0) distance_m = t_m;
-                }
-                const double w0 = 1.0 - w1 - w2;
-                const std::array<double, 3> w = {w0, w1, w2};
+                if (hit.crosses_plane && hit.distance_m > 0.0) distance_m = hit.distance_m;
+                const std::array<double, 3>& w = hit.weights;
                 range[i] = static_cast<float>(distance_m);
                 // Normal in the map frame (rotated like the world frame), facing the camera.
                 Eigen::Vector3d normal = e1.cross(e2);
@@ -143,9 +131,9 @@ CalibratedCameraRendering render_calibrated_camera(const TriangleMesh& mesh,
                 if (has_rgb) {
                     std::array<double, 3> value{};
                     for (int k = 0; k < 3; ++k) {
-                        value[k] = w0 * mesh.vertex_rgb[tri[0]][k] +
-                                   w1 * mesh.vertex_rgb[tri[1]][k] +
-                                   w2 * mesh.vertex_rgb[tri[2]][k];
+                        value[k] = w[0] * mesh.vertex_rgb[tri[0]][k] +
+                                   w[1] * mesh.vertex_rgb[tri[1]][k] +
+                                   w[2] * mesh.vertex_rgb[tri[2]][k];
                     }
                     pixel = {to_byte(value[0]), to_byte(value[1]), to_byte(value[2])};
                     red[i] = static_cast<float>(srgb_to_linear(value[0] / 255.0));

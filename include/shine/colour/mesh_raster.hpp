@@ -14,7 +14,9 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "shine/geometry/triangle_mesh.hpp"
@@ -35,5 +37,24 @@ struct MeshRaster {
 /// Rasterises `mesh` (vertices in its map frame) into `camera` at `T_map_camera`.
 MeshRaster rasterize_mesh(const TriangleMesh& mesh, const RigCamera& camera,
                           const Eigen::Isometry3d& T_map_camera, double near_m = 0.3);
+
+/// Where the ray of pixel (u, v) meets the plane of a triangle (Moller-Trumbore from the camera's
+/// centre), in the camera's optical frame.
+struct PixelTriangleHit {
+    /// Barycentric weights of the triangle's corners, clamped into the triangle; a third each
+    /// when the ray is parallel to the plane.
+    std::array<double, 3> weights = {1.0 - 1.0 / 3.0 - 1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};
+    bool crosses_plane = false;  ///< false: the ray is parallel to the plane
+    double distance_m = std::numeric_limits<double>::quiet_NaN();  ///< along the unit ray
+    Eigen::Vector3d ray = Eigen::Vector3d::Zero();                 ///< the pixel's unit ray
+    Eigen::Vector3d edge1 = Eigen::Vector3d::Zero();               ///< corner 1 - corner 0
+    Eigen::Vector3d edge2 = Eigen::Vector3d::Zero();               ///< corner 2 - corner 0
+};
+
+/// The hit of pixel (u, v) of `camera` (at T_camera_map, the inverse of its pose) on triangle
+/// `triangle` of `mesh`: how renderers and the colour fit share one pixel's barycentric weights.
+PixelTriangleHit pixel_triangle_hit(const TriangleMesh& mesh, std::int32_t triangle,
+                                    const RigCamera& camera, const Eigen::Isometry3d& T_camera_map,
+                                    int u, int v);
 
 }  // namespace shine
