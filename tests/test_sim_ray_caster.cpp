@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "shine/core/error.hpp"
@@ -10,9 +11,9 @@
 
 namespace {
 
-using shine::TriangleMesh;
 using shine::RayCaster;
 using shine::RayHit;
+using shine::TriangleMesh;
 
 constexpr double kDistanceToleranceM = 1e-5;  // 10 um
 
@@ -46,22 +47,22 @@ double analytic_box_entry(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
 TEST(MollerTrumbore, HitsInsideMissesOutsideAndParallel) {
     const Eigen::Vector3d v0(0, 0, 0), v1(1, 0, 0), v2(0, 1, 0);
     double t = -1.0;
-    EXPECT_TRUE(shine::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0,
-                                                   10.0, t));
+    EXPECT_TRUE(
+        shine::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0, 10.0, t));
     EXPECT_DOUBLE_EQ(t, 2.0);
     // Two-sided: the same triangle seen from below.
-    EXPECT_TRUE(shine::intersect_ray_triangle({0.25, 0.25, -3.0}, {0, 0, 1}, v0, v1, v2, 0.0,
-                                                   10.0, t));
+    EXPECT_TRUE(
+        shine::intersect_ray_triangle({0.25, 0.25, -3.0}, {0, 0, 1}, v0, v1, v2, 0.0, 10.0, t));
     EXPECT_DOUBLE_EQ(t, 3.0);
-    EXPECT_FALSE(shine::intersect_ray_triangle({0.75, 0.75, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0,
-                                                    10.0, t));
+    EXPECT_FALSE(
+        shine::intersect_ray_triangle({0.75, 0.75, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0, 10.0, t));
     EXPECT_FALSE(
         shine::intersect_ray_triangle({0.25, 0.25, 0.0}, {1, 0, 0}, v0, v1, v2, 0.0, 10.0, t));
     // Outside [t_min, t_max].
     EXPECT_FALSE(
         shine::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 0.0, 1.5, t));
-    EXPECT_FALSE(shine::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 2.5,
-                                                    10.0, t));
+    EXPECT_FALSE(
+        shine::intersect_ray_triangle({0.25, 0.25, 2.0}, {0, 0, -1}, v0, v1, v2, 2.5, 10.0, t));
 }
 
 TEST(RayCaster, PlaneDistancesAreExact) {
@@ -115,9 +116,9 @@ TEST(RayCaster, RefinedBoxDistancesAreExact) {
     EXPECT_NEAR(from_inside.distance_m, 2.0, kDistanceToleranceM);
 }
 
-TEST(RayCaster, BvhEqualsBruteForceOnRandomRays) {
+/// Boxes and ellipsoids scattered over [-10, 10]^3, refined to edges of at most `max_edge_m`.
+TriangleMesh make_random_scene(std::mt19937_64& rng, float max_edge_m) {
     TriangleMesh scene;
-    std::mt19937_64 rng(3);
     std::uniform_real_distribution<float> position(-10.0f, 10.0f), size(0.3f, 3.0f);
     for (int i = 0; i < 12; ++i) {
         const Eigen::Vector3f corner(position(rng), position(rng), position(rng));
@@ -130,7 +131,14 @@ TEST(RayCaster, BvhEqualsBruteForceOnRandomRays) {
         for (auto& v : ellipsoid.vertices) v += center;
         shine::sim::append_mesh(scene, ellipsoid);
     }
-    shine::sim::refine_to_max_edge(scene, 0.5f);
+    shine::sim::refine_to_max_edge(scene, max_edge_m);
+    return scene;
+}
+
+TEST(RayCaster, BvhEqualsBruteForceOnRandomRays) {
+    std::mt19937_64 rng(3);
+    const TriangleMesh scene = make_random_scene(rng, 0.5f);
+    std::uniform_real_distribution<float> position(-10.0f, 10.0f);
     ASSERT_GT(scene.triangles.size(), 5000u);
     const RayCaster caster(scene);
     int hits = 0;
@@ -157,6 +165,57 @@ TEST(RayCaster, BvhEqualsBruteForceOnRandomRays) {
     }
     EXPECT_GT(hits, 1000);
     EXPECT_LT(hits, 2900);
+}
+
+TEST(RayCaster, ParallelBuildGivesTheSerialTreeAndHits) {
+    std::mt19937_64 rng(7);
+    const TriangleMesh scene = make_random_scene(rng, 0.3f);
+    ASSERT_GT(scene.triangles.size(), 20000u);
+    const std::size_t n = scene.triangles.size();
+    shine::BvhBuildOptions serial_options;
+    serial_options.parallel_min_triangles = std::numeric_limits<std::size_t>::max();
+    const RayCaster serial(scene, 0, n, serial_options);
+    // Down to single triangles as tasks, a few levels as tasks, and the default.
+    for (const std::size_t min_triangles : {std::size_t{0}, std::size_t{64}, std::size_t{4096},
+                                            shine::BvhBuildOptions{}.parallel_min_triangles}) {
+        shine::BvhBuildOptions options;
+        options.parallel_min_triangles = min_triangles;
+        const RayCaster parallel(scene, 0, n, options);
+        EXPECT_EQ(parallel.num_nodes(), serial.num_nodes()) << min_triangles;
+        EXPECT_TRUE(parallel.same_bvh(serial)) << min_triangles;
+    }
+    // A block of the mesh: triangle ids count in the whole mesh either way.
+    shine::BvhBuildOptions options;
+    options.parallel_min_triangles = 256;
+    const RayCaster block_parallel(scene, 1000, n / 2, options);
+    const RayCaster block_serial(scene, 1000, n / 2, serial_options);
+    EXPECT_TRUE(block_parallel.same_bvh(block_serial));
+    EXPECT_FALSE(block_parallel.same_bvh(serial));
+
+    const RayCaster parallel(scene, 0, n, options);
+    std::uniform_real_distribution<double> position(-15.0, 15.0);
+    int hits = 0;
+    for (int i = 0; i < 3000; ++i) {
+        const Eigen::Vector3d origin(position(rng), position(rng), position(rng));
+        const Eigen::Vector3d direction =
+            i % 2 == 0 ? (scene.vertices[rng() % scene.vertices.size()].cast<double>() - origin)
+                             .normalized()
+                       : random_unit(rng);
+        const double t_min = i % 5 == 0 ? 2.0 : 0.0;
+        const RayHit a = parallel.cast(origin, direction, t_min);
+        const RayHit b = serial.cast(origin, direction, t_min);
+        const RayHit c = serial.cast_brute_force(origin, direction, t_min);
+        ASSERT_EQ(a.triangle_id, b.triangle_id) << "ray " << i;
+        ASSERT_EQ(a.triangle_id, c.triangle_id) << "ray " << i;
+        EXPECT_EQ(a.distance_m, b.distance_m) << "ray " << i;
+        EXPECT_EQ(a.distance_m, c.distance_m) << "ray " << i;
+        const RayHit d = block_parallel.cast(origin, direction, t_min);
+        const RayHit e = block_serial.cast(origin, direction, t_min);
+        ASSERT_EQ(d.triangle_id, e.triangle_id) << "ray " << i;
+        EXPECT_EQ(d.distance_m, e.distance_m) << "ray " << i;
+        hits += a.hit();
+    }
+    EXPECT_GT(hits, 1000);
 }
 
 TEST(RayCaster, EmptyMeshNeverHitsAndBadIndexThrows) {

@@ -1,8 +1,14 @@
 #include "shine/geometry/ray_caster.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <exception>
+#include <memory>
 #include <string>
 
 #include "shine/core/error.hpp"
@@ -41,30 +47,40 @@ struct Primitive {
     Eigen::Vector3f centroid;
 };
 
+/// A node's boxes and (index, count, axis) entries in depth-first order: the left child follows
+/// its parent, the right child's index is stored in the parent.
+struct NodeList {
+    std::vector<Box> boxes;
+    std::vector<std::array<std::uint32_t, 3>> info;  // index, count, axis
+
+    std::size_t size() const { return boxes.size(); }
+};
+
+/// What a node does with order[begin, end): become a leaf, or split at `middle` along `axis`.
+struct Split {
+    Box bounds;
+    bool leaf = false;
+    std::size_t middle = 0;
+    std::uint32_t axis = 0;
+};
+
 struct Builder {
     const std::vector<Primitive>& primitives;
     std::vector<std::int32_t>& order;
-    std::vector<Box> node_boxes;
-    std::vector<std::array<std::uint32_t, 3>> node_info;  // index, count, axis
 
-    /// Builds the subtree over order[begin, end) and returns its node index.
-    std::uint32_t build(std::size_t begin, std::size_t end, int depth) {
-        const auto node = static_cast<std::uint32_t>(node_boxes.size());
-        node_boxes.emplace_back();
-        node_info.push_back({0, 0, 0});
-        Box bounds, centroid_bounds;
+    /// Decides node order[begin, end) at `depth` (partitioning `order` for a split). Throws
+    /// ConfigError at the depth limit with too many triangles left for a leaf.
+    Split split(std::size_t begin, std::size_t end, int depth) const {
+        Split result;
+        Box centroid_bounds;
         for (std::size_t i = begin; i < end; ++i) {
-            bounds.extend(primitives[order[i]].box);
+            result.bounds.extend(primitives[order[i]].box);
             centroid_bounds.extend(primitives[order[i]].centroid);
         }
-        node_boxes[node] = bounds;
+        const Box& bounds = result.bounds;
         const std::size_t count = end - begin;
-        auto make_leaf = [&] {
-            node_info[node] = {static_cast<std::uint32_t>(begin), static_cast<std::uint32_t>(count),
-                               0};
-            return node;
-        };
-        if (count <= static_cast<std::size_t>(kMaxLeafSize)) return make_leaf();
+        result.leaf = true;
+        if (count <= static_cast<std::size_t>(kMaxLeafSize)) return result;
         if (depth >= kMaxDepth) {
             if (count > 0xFFFF) {
                 throw ConfigError(
@@ -72,7 +88,7 @@ struct Builder {
                     std::to_string(count) +
                     " triangles left; the mesh is degenerate (coincident triangles?)");
             }
-            return make_leaf();
+            return result;
         }
 
         // Binned SAH over all three axes.
@@ -124,7 +140,7 @@ struct Builder {
         if (best_axis >= 0) {
             const float leaf_cost = bounds.half_area() * static_cast<float>(count);
             if (best_cost >= leaf_cost && count <= static_cast<std::size_t>(kForcedLeafSize)) {
-                return make_leaf();
+                return result;
             }
             const float lo = centroid_bounds.lower[best_axis];
             const float scale = kBins / (centroid_bounds.upper[best_axis] - lo);
@@ -140,12 +156,95 @@ struct Builder {
             axis_for_node = best_axis;
             if (middle == begin || middle == end) middle = begin + count / 2;
         } else if (count <= static_cast<std::size_t>(kForcedLeafSize)) {
-            return make_leaf();  // all centroids coincide
+            return result;  // all centroids coincide
         }
-        build(begin, middle, depth + 1);
-        const std::uint32_t right_child = build(middle, end, depth + 1);
-        node_info[node] = {right_child, 0, static_cast<std::uint32_t>(axis_for_node)};
+        result.leaf = false;
+        result.middle = middle;
+        result.axis = static_cast<std::uint32_t>(axis_for_node);
+        return result;
+    }
+
+    /// Appends the subtree over order[begin, end) to `out` and returns its node index there.
+    std::uint32_t build(std::size_t begin, std::size_t end, int depth, NodeList& out) const {
+        const auto node = static_cast<std::uint32_t>(out.size());
+        const Split s = split(begin, end, depth);
+        out.boxes.push_back(s.bounds);
+        if (s.leaf) {
+            out.info.push_back(
+                {static_cast<std::uint32_t>(begin), static_cast<std::uint32_t>(end - begin), 0});
+            return node;
+        }
+        out.info.push_back({0, 0, s.axis});
+        build(begin, s.middle, depth + 1, out);
+        const std::uint32_t right_child = build(s.middle, end, depth + 1, out);
+        out.info[node][0] = right_child;
         return node;
+    }
+};
+
+/// A subtree of the parallel build: either one inner node whose two children were built as
+/// parallel tasks, or a subtree built serially (`nodes`, with indices relative to its first node).
+/// The nodes come out exactly as one serial build() would make them, in the same order.
+struct Part {
+    NodeList nodes;
+    std::unique_ptr<Part> left, right;  // set for an inner node split at the top
+    std::exception_ptr error;           // what building this part threw (the build stops there)
+    std::size_t size = 0;               // nodes in the whole subtree
+
+    void build(const Builder& builder, std::size_t begin, std::size_t end, int depth,
+               std::size_t parallel_min_triangles) {
+        try {
+            if (end - begin < parallel_min_triangles) {
+                builder.build(begin, end, depth, nodes);
+                size = nodes.size();
+                return;
+            }
+            const Split s = builder.split(begin, end, depth);
+            nodes.boxes.push_back(s.bounds);
+            if (s.leaf) {
+                nodes.info.push_back({static_cast<std::uint32_t>(begin),
+                                      static_cast<std::uint32_t>(end - begin), 0});
+                size = 1;
+                return;
+            }
+            nodes.info.push_back({0, 0, s.axis});
+            left = std::make_unique<Part>();
+            right = std::make_unique<Part>();
+            // The two halves of `order` are disjoint, so the tasks never touch the same slot.
+            tbb::parallel_invoke(
+                [&] { left->build(builder, begin, s.middle, depth + 1, parallel_min_triangles); },
+                [&] { right->build(builder, s.middle, end, depth + 1, parallel_min_triangles); });
+            size = 1 + left->size + right->size;
+        } catch (...) {
+            error = std::current_exception();
+        }
+    }
+
+    /// The first error in depth-first order, which is the one a serial build stops at.
+    std::exception_ptr first_error() const {
+        if (error) return error;
+        for (const Part* child : {left.get(), right.get()}) {
+            if (!child) continue;
+            if (std::exception_ptr e = child->first_error()) return e;
+        }
+        return nullptr;
+    }
+
+    /// Writes the subtree's nodes to out[first, first + size), child indices offset by `first`.
+    template <class Write>
+    void emit(std::uint32_t first, const Write& write) const {
+        if (!left) {
+            for (std::size_t i = 0; i < nodes.size(); ++i) {
+                std::array<std::uint32_t, 3> info = nodes.info[i];
+                if (info[1] == 0) info[0] += first;  // inner node: right child index
+                write(first + static_cast<std::uint32_t>(i), nodes.boxes[i], info);
+            }
+            return;
+        }
+        const auto right_first = static_cast<std::uint32_t>(first + 1 + left->size);
+        write(first, nodes.boxes[0], {right_first, 0, nodes.info[0][2]});
+        tbb::parallel_invoke([&] { left->emit(first + 1, write); },
+                             [&] { right->emit(right_first, write); });
     }
 };
 
@@ -190,7 +289,11 @@ bool intersect_ray_triangle(const Eigen::Vector3d& origin, const Eigen::Vector3d
 RayCaster::RayCaster(const TriangleMesh& mesh) : RayCaster(mesh, 0, mesh.triangles.size()) {}
 
 RayCaster::RayCaster(const TriangleMesh& mesh, std::size_t first_triangle,
-                     std::size_t num_triangles) {
+                     std::size_t num_triangles)
+    : RayCaster(mesh, first_triangle, num_triangles, BvhBuildOptions{}) {}
+
+RayCaster::RayCaster(const TriangleMesh& mesh, std::size_t first_triangle,
+                     std::size_t num_triangles, const BvhBuildOptions& options) {
     if (first_triangle > mesh.triangles.size() ||
         num_triangles > mesh.triangles.size() - first_triangle) {
         throw ConfigError("RayCaster: triangles [" + std::to_string(first_triangle) + ", " +
@@ -204,60 +307,89 @@ RayCaster::RayCaster(const TriangleMesh& mesh, std::size_t first_triangle,
     }
     const std::size_t n = num_triangles;
     const auto n_vertices = static_cast<int>(mesh.vertices.size());
-    std::vector<Primitive> primitives(n);
+    // Every triangle is checked first (in order, so the first bad one is named), then the
+    // primitives are made in parallel.
     for (std::size_t i = 0; i < n; ++i) {
         const Eigen::Vector3i& t = mesh.triangles[first_triangle + i];
-        Primitive& p = primitives[i];
         for (int k = 0; k < 3; ++k) {
             if (t[k] < 0 || t[k] >= n_vertices) {
                 throw ConfigError("RayCaster: triangle " + std::to_string(first_triangle + i) +
                                   " has vertex index " + std::to_string(t[k]) +
                                   " but the mesh has " + std::to_string(n_vertices) + " vertices");
             }
-            const Eigen::Vector3f& v = mesh.vertices[t[k]];
-            if (!v.allFinite()) {
+            if (!mesh.vertices[t[k]].allFinite()) {
                 throw ConfigError("RayCaster: vertex " + std::to_string(t[k]) + " is not finite");
             }
-            p.box.extend(v);
         }
-        for (int a = 0; a < 3; ++a) {
-            p.box.lower[a] = pad(p.box.lower[a], -1.0f);
-            p.box.upper[a] = pad(p.box.upper[a], 1.0f);
-        }
-        p.centroid = 0.5f * (p.box.lower + p.box.upper);
     }
-    std::vector<std::int32_t> order(n);
-    for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::int32_t>(i);
     if (n == 0) return;
+    constexpr std::size_t kGrain = 16384;
+    std::vector<Primitive> primitives(n);
+    std::vector<std::int32_t> order(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                              const Eigen::Vector3i& t = mesh.triangles[first_triangle + i];
+                              Primitive& p = primitives[i];
+                              for (int k = 0; k < 3; ++k) p.box.extend(mesh.vertices[t[k]]);
+                              for (int a = 0; a < 3; ++a) {
+                                  p.box.lower[a] = pad(p.box.lower[a], -1.0f);
+                                  p.box.upper[a] = pad(p.box.upper[a], 1.0f);
+                              }
+                              p.centroid = 0.5f * (p.box.lower + p.box.upper);
+                              order[i] = static_cast<std::int32_t>(i);
+                          }
+                      });
 
-    Builder builder{primitives, order, {}, {}};
-    builder.node_boxes.reserve(2 * n / kMaxLeafSize + 1);
-    builder.node_info.reserve(2 * n / kMaxLeafSize + 1);
-    builder.build(0, n, 0);
+    const Builder builder{primitives, order};
+    Part root;
+    root.build(builder, 0, n, 0, options.parallel_min_triangles);
+    if (std::exception_ptr error = root.first_error()) std::rethrow_exception(error);
 
-    nodes_.resize(builder.node_boxes.size());
-    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    nodes_.resize(root.size);
+    root.emit(0, [&](std::uint32_t i, const Box& box, const std::array<std::uint32_t, 3>& info) {
         Node& node = nodes_[i];
         for (int a = 0; a < 3; ++a) {
-            node.lower[a] = builder.node_boxes[i].lower[a];
-            node.upper[a] = builder.node_boxes[i].upper[a];
+            node.lower[a] = box.lower[a];
+            node.upper[a] = box.upper[a];
         }
-        node.index = builder.node_info[i][0];
-        node.count = static_cast<std::uint16_t>(builder.node_info[i][1]);
-        node.axis = static_cast<std::uint16_t>(builder.node_info[i][2]);
-    }
-    corners_.resize(9 * n);
-    for (std::size_t slot = 0; slot < n; ++slot) {
-        const Eigen::Vector3i& t = mesh.triangles[first_triangle + order[slot]];
-        for (int k = 0; k < 3; ++k) {
-            for (int a = 0; a < 3; ++a) corners_[9 * slot + 3 * k + a] = mesh.vertices[t[k]][a];
-        }
-    }
+        node.index = info[0];
+        node.count = static_cast<std::uint16_t>(info[1]);
+        node.axis = static_cast<std::uint16_t>(info[2]);
+    });
     // Slots name triangles by their index in the whole mesh.
+    corners_.resize(9 * n);
     triangle_ids_.resize(n);
-    for (std::size_t slot = 0; slot < n; ++slot) {
-        triangle_ids_[slot] = static_cast<std::int32_t>(first_triangle) + order[slot];
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, n, kGrain),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            for (std::size_t slot = range.begin(); slot != range.end(); ++slot) {
+                const Eigen::Vector3i& t = mesh.triangles[first_triangle + order[slot]];
+                for (int k = 0; k < 3; ++k) {
+                    for (int a = 0; a < 3; ++a) {
+                        corners_[9 * slot + 3 * k + a] = mesh.vertices[t[k]][a];
+                    }
+                }
+                triangle_ids_[slot] = static_cast<std::int32_t>(first_triangle) + order[slot];
+            }
+        });
+}
+
+bool RayCaster::same_bvh(const RayCaster& other) const {
+    if (nodes_.size() != other.nodes_.size() || corners_ != other.corners_ ||
+        triangle_ids_ != other.triangle_ids_) {
+        return false;
     }
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+        const Node& a = nodes_[i];
+        const Node& b = other.nodes_[i];
+        if (!std::equal(a.lower, a.lower + 3, b.lower) ||
+            !std::equal(a.upper, a.upper + 3, b.upper) || a.index != b.index ||
+            a.count != b.count || a.axis != b.axis) {
+            return false;
+        }
+    }
+    return true;
 }
 
 Eigen::AlignedBox3f RayCaster::bounds() const {

@@ -1,5 +1,5 @@
 // Closest-hit ray casting against a triangle mesh: a bounding volume hierarchy (binned SAH) built
-// once, queried from many threads.
+// once (the subtrees of its top levels as parallel TBB tasks), queried from many threads.
 //
 // The simulator casts 64 x 1800 rays per scan against a street of about a million triangles.
 // Traversal uses float boxes (padded so rounding never culls a hit); the ray/triangle test
@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -30,6 +31,13 @@ bool intersect_ray_triangle(const Eigen::Vector3d& origin, const Eigen::Vector3d
                             const Eigen::Vector3d& v0, const Eigen::Vector3d& v1,
                             const Eigen::Vector3d& v2, double t_min, double t_max, double& t);
 
+/// How RayCaster builds its BVH. Every choice gives the same tree, node for node.
+struct BvhBuildOptions {
+    /// A node over at least this many triangles builds its two subtrees as parallel tasks;
+    /// SIZE_MAX builds the whole tree serially (the reference the tests compare against).
+    std::size_t parallel_min_triangles = 32768;
+};
+
 /// Bounding volume hierarchy over a triangle mesh for closest-hit queries. Immutable after
 /// construction; cast() is thread-safe.
 class RayCaster {
@@ -43,6 +51,10 @@ class RayCaster {
     /// ties go to the lowest such index, so blocks agree with one BVH over the whole mesh. Throws
     /// ConfigError as above, or if the range exceeds the mesh.
     RayCaster(const TriangleMesh& mesh, std::size_t first_triangle, std::size_t num_triangles);
+
+    /// As above, built as `options` say.
+    RayCaster(const TriangleMesh& mesh, std::size_t first_triangle, std::size_t num_triangles,
+              const BvhBuildOptions& options);
 
     /// Closest hit of the ray origin_m + t * direction_unit with t in [t_min_m, t_max_m];
     /// `direction_unit` must have unit length for distance_m to be in metres.
@@ -60,6 +72,9 @@ class RayCaster {
 
     std::size_t num_triangles() const { return triangle_ids_.size(); }
     std::size_t num_nodes() const { return nodes_.size(); }
+
+    /// True if `other` has the same BVH: equal nodes, triangle slots and corners.
+    bool same_bvh(const RayCaster& other) const;
 
   private:
     struct Node {
