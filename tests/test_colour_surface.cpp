@@ -4,7 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <map>
+#include <random>
 
 #include "shine/colour/camera_view.hpp"
 #include "shine/colour/mesh_raster.hpp"
@@ -286,6 +291,106 @@ TEST(ReflectanceVoxels, ReadsTheMeanIntensityOfNearbyPoints) {
     EXPECT_TRUE(std::isnan(voxels.at({0.0, 0.0, 1.0})));  // nothing measured there
     EXPECT_THROW(voxels.add(points, {}), DataError);
     EXPECT_THROW(ReflectanceVoxels(0.0), ConfigError);
+}
+
+/// ReflectanceVoxels as a plain map: sums per voxel in the order the points come, the mean read
+/// from them at each query, the same arithmetic.
+class ReferenceReflectance {
+  public:
+    explicit ReferenceReflectance(double voxel_m) : voxel_m_(voxel_m) {}
+
+    void add(const std::vector<Eigen::Vector3d>& points, const std::vector<float>& intensity) {
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            if (!std::isfinite(intensity[i]) || !points[i].allFinite()) continue;
+            if ((points[i].array().abs() / voxel_m_ > 0.9 * (1 << 20)).any()) continue;
+            const Eigen::Vector3i v = (points[i] / voxel_m_).array().floor().cast<int>();
+            Cell& cell = cells_[{v.x(), v.y(), v.z()}];
+            cell.intensity_sum += intensity[i];
+            cell.position_sum += points[i];
+            ++cell.count;
+        }
+    }
+
+    float at(const Eigen::Vector3d& p) const {
+        const Eigen::Vector3i c = (p / voxel_m_).array().floor().cast<int>();
+        const double inv_sigma2 = 1.0 / (voxel_m_ * voxel_m_);
+        double sum = 0.0, weight = 0.0;
+        for (int dz = -1; dz <= 1; ++dz) {
+            for (int dy = -1; dy <= 1; ++dy) {
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const auto it = cells_.find({c.x() + dx, c.y() + dy, c.z() + dz});
+                    if (it == cells_.end()) continue;
+                    const Cell& cell = it->second;
+                    const Eigen::Vector3d mean = cell.position_sum / cell.count;
+                    const double w = cell.count * std::exp(-(mean - p).squaredNorm() * inv_sigma2);
+                    sum += w * (cell.intensity_sum / cell.count);
+                    weight += w;
+                }
+            }
+        }
+        return weight > 0.0 ? static_cast<float>(sum / weight) : std::nanf("");
+    }
+
+    std::size_t size() const { return cells_.size(); }
+
+  private:
+    struct Cell {
+        double intensity_sum = 0.0;
+        Eigen::Vector3d position_sum = Eigen::Vector3d::Zero();
+        std::uint32_t count = 0;
+    };
+    double voxel_m_;
+    std::map<std::array<int, 3>, Cell> cells_;
+};
+
+TEST(ReflectanceVoxels, ReadsExactlyWhatAPlainMapOfSumsReads) {
+    // Points in batches (as scans), read between the batches, so voxels gain points after they
+    // have been read; enough voxels for the table to grow many times; both signs of coordinates.
+    ReflectanceVoxels voxels(0.05);
+    ReferenceReflectance reference(0.05);
+    std::mt19937_64 rng(17);
+    std::uniform_real_distribution<double> coordinate(-3.0, 3.0), unit(0.0, 1.0);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    std::vector<Eigen::Vector3d> queries;
+    for (int i = 0; i < 2000; ++i) {
+        queries.emplace_back(coordinate(rng), coordinate(rng), 0.3 * coordinate(rng));
+    }
+    std::size_t points_added = 0;
+    for (int batch = 0; batch < 6; ++batch) {
+        std::vector<Eigen::Vector3d> points;
+        std::vector<float> intensity;
+        for (int i = 0; i < 30000; ++i) {
+            // A wavy surface, so most voxels hold several points.
+            const double x = coordinate(rng), y = coordinate(rng);
+            points.emplace_back(x, y, 0.3 * std::sin(x) * std::cos(2.0 * y) + noise(rng));
+            intensity.push_back(static_cast<float>(unit(rng)));
+        }
+        points.emplace_back(1e7, 0.0, 0.0);  // beyond the keys' range: skipped
+        intensity.push_back(0.5f);
+        points.emplace_back(0.1, 0.1, std::nan(""));
+        intensity.push_back(0.5f);
+        voxels.add(points, intensity);
+        reference.add(points, intensity);
+        points_added += 30000;
+        EXPECT_EQ(voxels.num_points(), points_added);
+        EXPECT_EQ(voxels.num_voxels(), reference.size());
+        int known = 0;
+        for (const Eigen::Vector3d& q : queries) {
+            const float a = voxels.at(q);
+            const float b = reference.at(q);
+            if (std::isnan(b)) {
+                EXPECT_TRUE(std::isnan(a));
+                continue;
+            }
+            ++known;
+            std::uint32_t bits_a, bits_b;
+            std::memcpy(&bits_a, &a, sizeof a);
+            std::memcpy(&bits_b, &b, sizeof b);
+            ASSERT_EQ(bits_a, bits_b) << "batch " << batch << " at " << q.transpose();
+        }
+        EXPECT_GT(known, 100);
+    }
+    EXPECT_GT(voxels.num_voxels(), 20000u);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // The LiDAR's reflectance fused onto the surface: every measured point's intensity accumulated in
-// a sparse voxel hash (sum, count and mean position per voxel), then read at surface points as a
+// a sparse voxel hash (sum, count and mean position per voxel; an open-addressing table whose
+// voxels keep their means ready for reading), then read at surface points as a
 // Gaussian-weighted mean over the voxels around them.
 //
 // A LiDAR return lies on the first surface along its ray, so no occlusion test is needed: unlike
@@ -9,7 +10,6 @@
 
 #include <Eigen/Core>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 namespace shine {
@@ -28,22 +28,46 @@ class ReflectanceVoxels {
     /// count * exp(-d^2 / voxel^2), d from p to the voxel's mean point. NaN where none.
     float at(const Eigen::Vector3d& p_map) const;
 
-    bool empty() const { return voxels_.empty(); }
-    std::size_t num_voxels() const { return voxels_.size(); }
+    bool empty() const { return sums_.empty(); }
+    std::size_t num_voxels() const { return sums_.size(); }
     std::size_t num_points() const { return points_; }
     double voxel_size_m() const { return voxel_size_m_; }
 
   private:
-    struct Cell {
+    /// What add() accumulates per voxel, in the order the points come.
+    struct Sums {
         double intensity_sum = 0.0;
         Eigen::Vector3d position_sum = Eigen::Vector3d::Zero();
         std::uint32_t count = 0;
+        std::uint32_t stamp = 0;  ///< the add() call that last changed it
     };
+    /// What at() reads per voxel, computed from its sums at the end of each add().
+    struct Mean {
+        Eigen::Vector3d position;
+        double count;
+        double intensity;
+    };
+    static constexpr std::uint64_t kNoKey = ~std::uint64_t{0};  ///< keys use 63 bits
+    struct Slot {
+        std::uint64_t key = kNoKey;
+        std::uint32_t cell = 0;  ///< index into sums_ and means_
+    };
+
     static std::uint64_t key(const Eigen::Vector3i& voxel);
     Eigen::Vector3i voxel_of(const Eigen::Vector3d& p_map) const;
+    std::size_t slot_of(std::uint64_t key) const;
+    /// The voxel of `key` (index into sums_ and means_), or -1.
+    std::int64_t find(std::uint64_t key) const;
+    std::uint32_t find_or_insert(std::uint64_t key);
+    void grow();
 
     double voxel_size_m_;
-    std::unordered_map<std::uint64_t, Cell> voxels_;
+    /// Linear-probing hash table from key to voxel, a power of two long and at most half full.
+    std::vector<Slot> table_;
+    int table_bits_ = 0;
+    std::vector<Sums> sums_;   ///< one per voxel, in order of first point
+    std::vector<Mean> means_;  ///< same order
+    std::uint32_t adds_ = 0;   ///< add() calls so far
     std::size_t points_ = 0;
 };
 
