@@ -5,13 +5,17 @@
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <tuple>
 
 #include "shine/core/error.hpp"
+#include "shine/core/random.hpp"
 #include "shine/odometry/registration_points.hpp"
 #include "shine/odometry/sdf_registration.hpp"
 #include "shine/odometry/se3.hpp"
@@ -459,6 +463,51 @@ TEST(RegistrationPoints, RangeWindowAndOnePointPerVoxel) {
               select_registration_point_indices(points, config));  // deterministic
     config.max_range_m = 0.5;
     EXPECT_THROW(select_registration_points(points, config), ConfigError);
+}
+
+TEST(RegistrationPoints, TheSelectionIsThePlainDrawPerVoxel) {
+    // Per voxel the point whose index has the smallest mix_seed, ascending: checked against a
+    // plain std::map over many points in few voxels (duplicates, points on voxel faces, outside
+    // the range window, not finite), and over a spread-out cloud that grows the voxel table.
+    for (const double spread : {2.0, 40.0}) {
+        std::mt19937_64 rng(spread > 10 ? 2 : 1);
+        std::uniform_real_distribution<float> u(-float(spread), float(spread));
+        std::vector<Eigen::Vector3f> points;
+        for (int i = 0; i < 60000; ++i) {
+            Eigen::Vector3f p(u(rng), u(rng), u(rng));
+            if (i % 7 == 0) p = (p * 2.0f).array().round() / 2.0f;  // on voxel faces
+            if (i % 11 == 0 && !points.empty()) p = points[i / 2];  // duplicates
+            if (i % 101 == 0) p.x() = std::numeric_limits<float>::quiet_NaN();
+            points.push_back(p);
+        }
+        RegistrationPointConfig config;
+        config.min_range_m = 1.0;
+        config.max_range_m = 30.0;
+        config.voxel_size_m = 0.5;
+        std::map<std::tuple<long, long, long>, std::size_t> chosen;
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            const Eigen::Vector3f& p = points[i];
+            if (!p.allFinite()) continue;
+            const double r2 = p.cast<double>().squaredNorm();
+            if (r2 < 1.0 || r2 > 900.0) continue;
+            const auto key = std::make_tuple(long(std::floor(double(p.x()) / 0.5)),
+                                             long(std::floor(double(p.y()) / 0.5)),
+                                             long(std::floor(double(p.z()) / 0.5)));
+            const auto [it, inserted] = chosen.try_emplace(key, i);
+            if (!inserted && mix_seed(i) < mix_seed(it->second)) it->second = i;
+        }
+        std::vector<std::size_t> expected;
+        for (const auto& [key, i] : chosen) expected.push_back(i);
+        std::sort(expected.begin(), expected.end());
+        EXPECT_EQ(select_registration_point_indices(points, config), expected);
+        config.voxel_size_m = 0.0;  // no thinning: every point in the window
+        std::vector<std::size_t> window;
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            const double r2 = points[i].cast<double>().squaredNorm();
+            if (points[i].allFinite() && r2 >= 1.0 && r2 <= 900.0) window.push_back(i);
+        }
+        EXPECT_EQ(select_registration_point_indices(points, config), window);
+    }
 }
 
 TEST(RegistrationPoints, ThePointAVoxelKeepsDoesNotFollowTheRangeNoise) {

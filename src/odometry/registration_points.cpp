@@ -1,10 +1,12 @@
 // Range window and voxel thinning of the points registration uses.
 #include "shine/odometry/registration_points.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
 
 #include "shine/core/error.hpp"
 #include "shine/core/random.hpp"
@@ -26,6 +28,67 @@ std::uint64_t voxel_key(const Eigen::Vector3f& p, double voxel_size_m) {
     return key;
 }
 
+/// voxel_key's value for a point outside the range window (voxel keys use 63 bits).
+constexpr std::uint64_t kNoVoxel = ~std::uint64_t(0);
+
+/// Voxels (keys other than kNoVoxel) with the point drawn in each: the smallest mix_seed(index)
+/// of the points offered for it.
+class VoxelTable {
+  public:
+    VoxelTable() { slots_.assign(kInitialSlots, Slot{}); }
+
+    void offer(std::uint64_t key, std::size_t index) {
+        const std::uint64_t rank = mix_seed(index);
+        Slot* slot = find(key);
+        if (slot->key == kNoVoxel) {
+            *slot = Slot{key, index, rank};
+            if (++size_ * 2 > slots_.size()) grow();
+        } else if (rank < slot->rank) {
+            slot->index = index;
+            slot->rank = rank;
+        }
+    }
+
+    std::size_t size() const { return size_; }
+
+    /// Sets chosen[i] for the drawn point i of every voxel.
+    void mark(std::vector<std::uint8_t>& chosen) const {
+        for (const Slot& slot : slots_) {
+            if (slot.key != kNoVoxel) chosen[slot.index] = 1;
+        }
+    }
+
+  private:
+    static constexpr std::size_t kInitialSlots = 4096;  // 2^12
+    struct Slot {
+        std::uint64_t key = kNoVoxel;
+        std::size_t index = 0;
+        std::uint64_t rank = 0;
+    };
+
+    /// The key's slot, or the empty slot where it would go.
+    Slot* find(std::uint64_t key) {
+        // Fibonacci hashing: the product's top bits depend on all of the key's.
+        const std::size_t mask = slots_.size() - 1;
+        std::size_t at = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
+        while (slots_[at].key != kNoVoxel && slots_[at].key != key) at = (at + 1) & mask;
+        return &slots_[at];
+    }
+
+    void grow() {
+        --shift_;
+        std::vector<Slot> old(slots_.size() * 2, Slot{});
+        old.swap(slots_);
+        for (const Slot& slot : old) {
+            if (slot.key != kNoVoxel) *find(slot.key) = slot;
+        }
+    }
+
+    std::vector<Slot> slots_;
+    std::size_t size_ = 0;
+    int shift_ = 64 - 12;  ///< 64 - log2(slots_.size())
+};
+
 }  // namespace
 }  // namespace registration_points_internal
 
@@ -42,32 +105,44 @@ std::vector<std::size_t> select_registration_point_indices(
     }
     const double min_sq = config.min_range_m * config.min_range_m;
     const double max_sq = config.max_range_m * config.max_range_m;
-    std::vector<std::size_t> out;
-    // Per voxel, the point whose index has the smallest hash: a draw independent of where the
-    // point lies in the voxel or in the scan (header).
-    struct Drawn {
-        std::uint64_t rank;
-        std::size_t index;
-    };
-    std::unordered_map<std::uint64_t, Drawn> drawn;
-    for (std::size_t i = 0; i < points_sensor.size(); ++i) {
-        const Eigen::Vector3f& p = points_sensor[i];
-        if (!p.allFinite()) continue;
+    const std::size_t n = points_sensor.size();
+    const auto in_window = [&](const Eigen::Vector3f& p) {
+        if (!p.allFinite()) return false;
         const double r2 = p.cast<double>().squaredNorm();
-        if (r2 < min_sq || r2 > max_sq) continue;
-        if (config.voxel_size_m <= 0.0) {
-            out.push_back(i);
-            continue;
+        return !(r2 < min_sq || r2 > max_sq);
+    };
+    std::vector<std::size_t> out;
+    if (config.voxel_size_m <= 0.0) {
+        for (std::size_t i = 0; i < n; ++i) {
+            if (in_window(points_sensor[i])) out.push_back(i);
         }
-        const Drawn candidate{mix_seed(i), i};
-        const auto [it, inserted] = drawn.try_emplace(
-            registration_points_internal::voxel_key(p, config.voxel_size_m), candidate);
-        if (!inserted && candidate.rank < it->second.rank) it->second = candidate;
+        return out;
     }
-    if (config.voxel_size_m > 0.0) {
-        out.reserve(drawn.size());
-        for (const auto& [key, chosen] : drawn) out.push_back(chosen.index);
-        std::sort(out.begin(), out.end());
+    using registration_points_internal::kNoVoxel;
+    // The points' voxels (kNoVoxel outside the window), in parallel.
+    std::vector<std::uint64_t> keys(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16384),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                              const Eigen::Vector3f& p = points_sensor[i];
+                              keys[i] = in_window(p) ? registration_points_internal::voxel_key(
+                                                           p, config.voxel_size_m)
+                                                     : kNoVoxel;
+                          }
+                      });
+    // Per voxel, the point whose index has the smallest hash: a draw independent of where the
+    // point lies in the voxel or in the scan (header). mix_seed is a bijection, so the draw has
+    // no ties. An open-addressing table of the voxels so far (linear probing, at most half full).
+    registration_points_internal::VoxelTable table;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (keys[i] != kNoVoxel) table.offer(keys[i], i);
+    }
+    // Ascending: marked, then collected in order.
+    std::vector<std::uint8_t> chosen(n, 0);
+    table.mark(chosen);
+    out.reserve(table.size());
+    for (std::size_t i = 0; i < n; ++i) {
+        if (chosen[i]) out.push_back(i);
     }
     return out;
 }
