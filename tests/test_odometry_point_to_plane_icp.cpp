@@ -198,3 +198,51 @@ TEST(PointToPlaneIcp, InlierRatioCountsPointsOnTheReferencePlanes) {
     EXPECT_DOUBLE_EQ(point_to_plane_inlier_ratio(points, down, planes, 1.0, 0.01), 0.6);
     EXPECT_DOUBLE_EQ(point_to_plane_inlier_ratio({}, identity, planes, 1.0, 0.2), 0.0);
 }
+
+TEST(PointToPlaneIcp, MatchesHintedByEarlierOnesAreTheSame) {
+    // A search bounded by a hint (a point's match at an earlier pose) must find what the plain
+    // search finds, for near, far, missing and wrong hints; ICP and its fitness with matches
+    // carried between them must give the same bits as without.
+    const Cloud reference = room(0.25, 0.0);
+    const ReferencePlanes planes(reference.points, reference.normals);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-9.0, 9.0);
+    std::uniform_int_distribution<long> any(-1, static_cast<long>(planes.size()) - 1);
+    int found = 0;
+    for (int i = 0; i < 4000; ++i) {
+        const Eigen::Vector3d q = kFarOrigin + Eigen::Vector3d(u(rng), 0.6 * u(rng), 0.3 * u(rng));
+        for (const double max_m : {0.3, 1.0, 8.0}) {
+            const long plain = planes.nearest(q, max_m);
+            found += plain >= 0;
+            EXPECT_EQ(planes.nearest(q, max_m, any(rng)), plain);
+            if (plain >= 0) {
+                EXPECT_EQ(planes.nearest(q, max_m, plain), plain);
+            }
+        }
+    }
+    EXPECT_GT(found, 4000);
+
+    const Cloud scene = room(0.3, 0.07);
+    const std::vector<Eigen::Vector3f> scan = to_sensor(scene.points, true_pose());
+    PointToPlaneIcpConfig config;
+    config.max_correspondence_distance_m = 8.0;
+    const Eigen::Isometry3d start = true_pose() * kPerturbation;
+    PlaneMatches matches;
+    const RegistrationResult plain = register_point_to_plane(scan, start, planes, config);
+    const RegistrationResult hinted =
+        register_point_to_plane(scan, start, planes, config, nullptr, &matches);
+    EXPECT_EQ(hinted.T_world_sensor.matrix(), plain.T_world_sensor.matrix());
+    EXPECT_EQ(hinted.iterations, plain.iterations);
+    EXPECT_EQ(hinted.final_cost, plain.final_cost);
+    ASSERT_EQ(matches.reference.size(), scan.size());
+    config.max_correspondence_distance_m = 1.0;
+    const RegistrationResult fine_plain =
+        register_point_to_plane(scan, plain.T_world_sensor, planes, config);
+    const RegistrationResult fine_hinted =
+        register_point_to_plane(scan, hinted.T_world_sensor, planes, config, nullptr, &matches);
+    EXPECT_EQ(fine_hinted.T_world_sensor.matrix(), fine_plain.T_world_sensor.matrix());
+    EXPECT_EQ(fine_hinted.final_cost, fine_plain.final_cost);
+    EXPECT_EQ(
+        point_to_plane_inlier_ratio(scan, fine_hinted.T_world_sensor, planes, 1.0, 0.05, &matches),
+        point_to_plane_inlier_ratio(scan, fine_plain.T_world_sensor, planes, 1.0, 0.05));
+}

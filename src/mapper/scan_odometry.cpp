@@ -68,17 +68,22 @@ IcpRun run_icp_stages(const OdometryConfig& c, const std::vector<Eigen::Vector3f
     stages.emplace_back(c.icp_max_correspondence_m, c.icp_kernel_scale_m);
     IcpRun run;
     run.pose = start;
+    // Each point's match, passed from iteration to iteration, stage to stage and to the fitness:
+    // the searches start near their answer (PlaneMatches).
+    PlaneMatches matches;
     for (const auto& [correspondence_m, scale_m] : stages) {
         PointToPlaneIcpConfig icp_config;
         icp_config.max_correspondence_distance_m = correspondence_m;
         icp_config.solver = solver_config(c, scale_m);
-        run.result = sweep ? register_point_to_plane(*measured, run.pose, planes, icp_config, sweep)
-                           : register_point_to_plane(points, run.pose, planes, icp_config);
+        run.result =
+            sweep
+                ? register_point_to_plane(*measured, run.pose, planes, icp_config, sweep, &matches)
+                : register_point_to_plane(points, run.pose, planes, icp_config, nullptr, &matches);
         run.iterations += run.result.iterations;
         if (run.result.accepted()) run.pose = run.result.T_world_sensor;
     }
     run.inlier_ratio = point_to_plane_inlier_ratio(
-        points, run.pose, planes, c.icp_max_correspondence_m, c.icp_kernel_scale_m);
+        points, run.pose, planes, c.icp_max_correspondence_m, c.icp_kernel_scale_m, &matches);
     return run;
 }
 

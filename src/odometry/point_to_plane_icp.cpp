@@ -3,8 +3,11 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 
 #include "shine/core/error.hpp"
 #include "shine/sampling/surface_normals.hpp"
@@ -104,17 +107,26 @@ void ReferencePlanes::build_tree() {
         PointKdTree(point_to_plane_icp_internal::indexed_relative(points_world_, origin_world_));
 }
 
-long ReferencePlanes::nearest(const Eigen::Vector3d& query_world, double max_distance_m) const {
+long ReferencePlanes::nearest(const Eigen::Vector3d& query_world, double max_distance_m,
+                              long hint) const {
     PointNeighbor found[1];
     const Eigen::Vector3f q = (query_world - origin_world_).cast<float>();
-    const int count =
-        tree_.nearest(q, 1, static_cast<float>(max_distance_m * max_distance_m), found);
+    float max_sq = static_cast<float>(max_distance_m * max_distance_m);
+    if (hint >= 0 && static_cast<std::size_t>(hint) < points_world_.size()) {
+        // The hint's distance as the tree computes it (its position is the tree's, relative to
+        // the origin in float): the nearest point is at most that far, so the search may stop
+        // there. The tree keeps points at exactly the bound, so the answer is the same.
+        const float hint_sq =
+            point_distance_sq(q, (points_world_[hint] - origin_world_).cast<float>());
+        if (hint_sq < max_sq) max_sq = hint_sq;
+    }
+    const int count = tree_.nearest(q, 1, max_sq, found);
     return count == 1 ? long(found[0].index) : -1;
 }
 
 long ReferencePlanes::plane_residual(const Eigen::Vector3d& point_world, double max_distance_m,
-                                     double& r_m) const {
-    const long j = nearest(point_world, max_distance_m);
+                                     double& r_m, long hint) const {
+    const long j = nearest(point_world, max_distance_m, hint);
     if (j >= 0) r_m = normals_world_[j].dot(point_world - points_world_[j]);
     return j;
 }
@@ -123,10 +135,15 @@ RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& p
                                            const Eigen::Isometry3d& T_world_sensor_initial,
                                            const ReferencePlanes& reference,
                                            const PointToPlaneIcpConfig& config,
-                                           const SweepModel* sweep) {
+                                           const SweepModel* sweep, PlaneMatches* matches) {
     if (!(config.max_correspondence_distance_m > 0.0)) {
         throw ConfigError("ICP max_correspondence_distance_m must be positive (got " +
                           std::to_string(config.max_correspondence_distance_m) + ")");
+    }
+    PlaneMatches own;
+    PlaneMatches& match = matches ? *matches : own;
+    if (match.reference.size() != points_sensor.size()) {
+        match.reference.assign(points_sensor.size(), -1);
     }
     const PointResiduals residuals = [&](const std::vector<Eigen::Vector3d>& points_world,
                                          std::vector<double>& r, std::vector<Eigen::Vector3d>& g,
@@ -139,7 +156,9 @@ RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& p
                           [&](const tbb::blocked_range<std::size_t>& range) {
                               for (std::size_t i = range.begin(); i != range.end(); ++i) {
                                   const long j = reference.plane_residual(
-                                      points_world[i], config.max_correspondence_distance_m, r[i]);
+                                      points_world[i], config.max_correspondence_distance_m, r[i],
+                                      match.reference[i]);
+                                  match.reference[i] = static_cast<std::int32_t>(j);
                                   if (j < 0) continue;
                                   g[i] = reference.normals_world()[j];
                                   valid[i] = 1;
@@ -153,16 +172,25 @@ RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& p
 double point_to_plane_inlier_ratio(const std::vector<Eigen::Vector3f>& points_sensor,
                                    const Eigen::Isometry3d& T_world_sensor,
                                    const ReferencePlanes& reference, double max_correspondence_m,
-                                   double inlier_m) {
-    if (points_sensor.empty()) return 0.0;
-    std::size_t inliers = 0;
-    for (const Eigen::Vector3f& p : points_sensor) {
-        double r_m = 0.0;
-        const long j =
-            reference.plane_residual(T_world_sensor * p.cast<double>(), max_correspondence_m, r_m);
-        if (j >= 0 && std::abs(r_m) <= inlier_m) ++inliers;
-    }
-    return static_cast<double>(inliers) / static_cast<double>(points_sensor.size());
+                                   double inlier_m, PlaneMatches* matches) {
+    const std::size_t n = points_sensor.size();
+    if (n == 0) return 0.0;
+    if (matches && matches->reference.size() != n) matches->reference.assign(n, -1);
+    const std::size_t inliers = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, n, 256), std::size_t(0),
+        [&](const tbb::blocked_range<std::size_t>& range, std::size_t count) {
+            for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                double r_m = 0.0;
+                const long j = reference.plane_residual(
+                    T_world_sensor * points_sensor[i].cast<double>(), max_correspondence_m, r_m,
+                    matches ? matches->reference[i] : -1);
+                if (matches) matches->reference[i] = static_cast<std::int32_t>(j);
+                if (j >= 0 && std::abs(r_m) <= inlier_m) ++count;
+            }
+            return count;
+        },
+        [](std::size_t a, std::size_t b) { return a + b; });
+    return static_cast<double>(inliers) / static_cast<double>(n);
 }
 
 }  // namespace shine

@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "shine/odometry/registration_solver.hpp"
@@ -55,12 +56,14 @@ class ReferencePlanes {
     const std::vector<Eigen::Vector3d>& normals_world() const { return normals_world_; }
 
     /// Index (into points_world()) of the nearest matchable point within max_distance_m of
-    /// `query_world`, or -1.
-    long nearest(const Eigen::Vector3d& query_world, double max_distance_m) const;
+    /// `query_world`, or -1. A `hint` (an index, or -1 for none), e.g. the point's match at an
+    /// earlier pose, only bounds the search: the answer is the same, found faster when the hint
+    /// is near.
+    long nearest(const Eigen::Vector3d& query_world, double max_distance_m, long hint = -1) const;
     /// ICP's residual at `point_world`: the index of its match (nearest(), -1 for none) and,
     /// for a match, r_m = n . (point - q), the signed distance to the match's tangent plane.
-    long plane_residual(const Eigen::Vector3d& point_world, double max_distance_m,
-                        double& r_m) const;
+    long plane_residual(const Eigen::Vector3d& point_world, double max_distance_m, double& r_m,
+                        long hint = -1) const;
 
   private:
     void build_tree();
@@ -69,6 +72,14 @@ class ReferencePlanes {
     std::vector<Eigen::Vector3d> points_world_;
     std::vector<Eigen::Vector3d> normals_world_;
     PointKdTree tree_;
+};
+
+/// The match (an index into ReferencePlanes::points_world(), -1 for none) of each of a set of scan
+/// points at the last pose they were matched at: ICP's iterations, its stages and its fitness
+/// pass them on, so that each search starts from the previous match (ReferencePlanes::nearest's
+/// hint). The matches found are the same with or without; an empty `reference` is no hint.
+struct PlaneMatches {
+    std::vector<std::int32_t> reference;
 };
 
 /// Configuration of register_point_to_plane.
@@ -81,20 +92,23 @@ struct PointToPlaneIcpConfig {
 /// Levenberg-Marquardt from `T_world_sensor_initial`. With `sweep` the points are as measured
 /// during the sweep, whose motion is estimated too (minimise_point_residuals). On failure
 /// (result.accepted() false) the result's pose is the initial one. Throws ConfigError for a
-/// non-positive correspondence distance or an invalid solver configuration.
+/// non-positive correspondence distance or an invalid solver configuration. `matches`, when given,
+/// hints the searches and is left with the matches of the last pose tried (PlaneMatches).
 RegistrationResult register_point_to_plane(const std::vector<Eigen::Vector3f>& points_sensor,
                                            const Eigen::Isometry3d& T_world_sensor_initial,
                                            const ReferencePlanes& reference,
                                            const PointToPlaneIcpConfig& config,
-                                           const SweepModel* sweep = nullptr);
+                                           const SweepModel* sweep = nullptr,
+                                           PlaneMatches* matches = nullptr);
 
 /// ICP's fitness: the share of `points_sensor` that, at `T_world_sensor`, have a matchable
 /// reference point within `max_correspondence_m` and lie within `inlier_m` of its tangent plane
 /// (0 for no points). Used to tell a registration that found the scene from one stuck in a wrong
-/// minimum, whose points mostly float off the reference planes.
+/// minimum, whose points mostly float off the reference planes. In parallel; `matches` as for
+/// register_point_to_plane.
 double point_to_plane_inlier_ratio(const std::vector<Eigen::Vector3f>& points_sensor,
                                    const Eigen::Isometry3d& T_world_sensor,
                                    const ReferencePlanes& reference, double max_correspondence_m,
-                                   double inlier_m);
+                                   double inlier_m, PlaneMatches* matches = nullptr);
 
 }  // namespace shine
