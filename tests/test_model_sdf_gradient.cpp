@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "shine/core/cpu_features.hpp"
 #include "shine/model/feature_encoding.hpp"
 #include "shine/model/neural_sdf.hpp"
 #include "shine/model/sdf_gradient.hpp"
@@ -151,6 +152,39 @@ TEST(SdfGradient, EightAtATimeEqualsOnePointAtATime) {
         EXPECT_GT(inside, 50);
         EXPECT_GT(outside, 20);
     }
+}
+
+TEST(SdfGradient, TheAvxGatherOfAFloat16MapEqualsThePlainOne) {
+    // gather_feature_and_jacobian on a float16 table of 8 features has an AVX/F16C version; its
+    // feature and Jacobian must be the plain version's bit for bit (a no-op where the CPU lacks
+    // AVX and F16C: both runs take the plain path).
+    const NeuralSdf sdf = random_map(FeaturePrecision::kFloat16);
+    ASSERT_EQ(sdf.octree.feature_dim(), 8);
+    const FeatureTableView features = sdf.octree.features().data();
+    CellLookup lookup(sdf.octree);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> u(-0.3f, 1.3f);
+    int inside = 0;
+    for (int i = 0; i < 300; ++i) {
+        const Eigen::Vector3f p(u(rng), u(rng), 0.1f + 0.2f * u(rng));
+        EncodedPoint encoded;
+        encode_point(lookup, sdf.octree, p, true, encoded);
+        if (!encoded.valid()) continue;
+        ++inside;
+        float feature[2][kMaxFeatureDim], jacobian[2][3 * kMaxFeatureDim];
+        for (int simd = 0; simd < 2; ++simd) {
+            set_simd_enabled(simd == 1);
+            gather_feature_and_jacobian(encoded, features, 8, feature[simd], jacobian[simd]);
+        }
+        set_simd_enabled(true);
+        for (int l = 0; l < 8; ++l) {
+            EXPECT_EQ(feature[0][l], feature[1][l]) << "point " << i;
+            for (int a = 0; a < 3; ++a) {
+                EXPECT_EQ(jacobian[0][l * 3 + a], jacobian[1][l * 3 + a]) << "point " << i;
+            }
+        }
+    }
+    EXPECT_GT(inside, 50);
 }
 
 TEST(SdfGradient, PointsOutsideTheMapAreInvalidWithZeroGradient) {
