@@ -21,13 +21,19 @@
 
 namespace shine {
 void apply_batch_defaults(MapperConfig& config) {
-    if (!config.fine_outdoor_leaf()) return;
-    if (!config.is_set("bake.mask_level") && config.bake.mask_level == 0 &&
+    if (config.resolved_scene() != ScenePreset::kOutdoor) return;
+    const bool fine = config.fine_outdoor_leaf();
+    if (fine && !config.is_set("bake.mask_level") && config.bake.mask_level == 0 &&
         config.octree.num_levels > 1) {
         config.bake.mask_level = 1;
     }
     if (!config.is_set("preprocess.voxel_points")) {
         config.preprocess.voxel_points = VoxelPoints::kAll;
+    }
+    if (!fine &&
+        config.holds_default("sampling.every_point_share", config.sampling.every_point_share,
+                             SamplingConfig{}.every_point_share)) {
+        config.sampling.every_point_share = kCoarseOutdoorEveryPointShare;
     }
 }
 

@@ -61,7 +61,8 @@ struct MapperConfig {
     /// the street (docs/performance.md): higher F-scores in both modes at 0.2 m leaves, with a
     /// quarter of the rays to sample, find normals for and allocate. On held-out real scans a
     /// finer thinning scores slightly better at 0.2 m and clearly better at 0.1 m leaves, where
-    /// 0.2 m thinning leaves most cells without a point (docs/heldout.md).
+    /// 0.2 m thinning leaves most cells without a point (docs/heldout.md). Batch mode outdoors
+    /// keeps every point instead, grouped by these voxels (apply_batch_defaults()).
     PreprocessConfig preprocess = mapper_preprocess_defaults();
     FeatureOctreeConfig octree;
     DecoderConfig decoder;
