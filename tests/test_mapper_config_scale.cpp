@@ -208,7 +208,7 @@ TEST(MapperConfigScale, AutomaticScheduleFollowsTheScenesCorners) {
     EXPECT_EQ(finalized("training:\n  iterations: 1000\n").batch_schedule(1000).iterations, 1000);
 }
 
-TEST(BatchDefaults, FineOutdoorLeavesBakeInsideLevelOneAndKeepEveryPointUnlessSet) {
+TEST(BatchDefaults, OutdoorKeepsEveryPointAndFineLeavesBakeInsideLevelOneUnlessSet) {
     const auto batch_config = [](double leaf_size_m, const char* set_key, const char* scene) {
         MapperConfig config;
         config.octree.leaf_size_m = leaf_size_m;
@@ -221,9 +221,18 @@ TEST(BatchDefaults, FineOutdoorLeavesBakeInsideLevelOneAndKeepEveryPointUnlessSe
     const MapperConfig fine = batch_config(0.1, nullptr, "outdoor");
     EXPECT_EQ(fine.bake.mask_level, 1);
     EXPECT_EQ(fine.preprocess.voxel_points, VoxelPoints::kAll);
-    const MapperConfig street = batch_config(0.2, nullptr, "outdoor");  // unchanged
+    EXPECT_EQ(fine.sampling.every_point_share, SamplingConfig{}.every_point_share);
+    // The street's leaves: every point too, 15 % of the draws over them, the bake as it was.
+    const MapperConfig street = batch_config(0.2, nullptr, "outdoor");
     EXPECT_EQ(street.bake.mask_level, 0);
-    EXPECT_EQ(street.preprocess.voxel_points, VoxelPoints::kNearest);
+    EXPECT_EQ(street.preprocess.voxel_points, VoxelPoints::kAll);
+    EXPECT_EQ(street.sampling.every_point_share, kCoarseOutdoorEveryPointShare);
+    EXPECT_EQ(batch_config(0.4, nullptr, "outdoor").sampling.every_point_share,
+              kCoarseOutdoorEveryPointShare);
+    EXPECT_EQ(batch_config(0.2, "sampling.every_point_share", "outdoor").sampling.every_point_share,
+              SamplingConfig{}.every_point_share);
+    EXPECT_EQ(batch_config(0.2, "preprocess.voxel_points", "outdoor").preprocess.voxel_points,
+              VoxelPoints::kNearest);
     EXPECT_EQ(batch_config(0.1, "bake.mask_level", "outdoor").bake.mask_level, 0);
     EXPECT_EQ(batch_config(0.1, "bake.mask_level", "outdoor").preprocess.voxel_points,
               VoxelPoints::kAll);
@@ -233,6 +242,7 @@ TEST(BatchDefaults, FineOutdoorLeavesBakeInsideLevelOneAndKeepEveryPointUnlessSe
     const MapperConfig indoor = batch_config(0.05, nullptr, "indoor");
     EXPECT_EQ(indoor.bake.mask_level, 0);
     EXPECT_EQ(indoor.preprocess.voxel_points, VoxelPoints::kNearest);
+    EXPECT_EQ(indoor.sampling.every_point_share, SamplingConfig{}.every_point_share);
 }
 
 TEST(IncrementalDefaults, FineOutdoorLeavesTakeFifteenStepsPerScanUnlessSet) {

@@ -448,7 +448,7 @@ class NeuralMap {
         return out;
     }
 
-    std::string config_yaml() const { return config_to_yaml(config_); }
+    std::string config_yaml() const { return config_to_yaml(products_config()); }
     std::string mode() const { return mode_name(mode_); }
     std::size_t num_scans() const { return scans_; }
     int iterations_done() const { return batch_ ? batch_->iterations_done() : 0; }
@@ -673,8 +673,10 @@ Raises:
         .def_property_readonly("stats", &NeuralMap::stats,
                                "The run's figures as stats.json of `shine map` holds them "
                                "(frames, rays, seconds per stage, map bytes, loss).")
-        .def_property_readonly("config_yaml", &NeuralMap::config_yaml,
-                               "The effective configuration as YAML (examples/config.yaml form).")
+        .def_property_readonly(
+            "config_yaml", &NeuralMap::config_yaml,
+            "The effective configuration as YAML (examples/config.yaml form): after "
+            "train(), the one the map is made with and save() stores.")
         .def_property_readonly("mode", &NeuralMap::mode,
                                "'empty', 'batch', 'incremental' or 'loaded'.")
         .def_property_readonly("num_scans", &NeuralMap::num_scans)
