@@ -13,8 +13,6 @@ ReflectanceVoxels::ReflectanceVoxels(double voxel_size_m) : voxel_size_m_(voxel_
         throw ConfigError("reflectance voxels: voxel size " + std::to_string(voxel_size_m) +
                           " m must be positive");
     }
-    table_bits_ = 10;
-    table_.assign(std::size_t{1} << table_bits_, Slot{});
 }
 
 std::uint64_t ReflectanceVoxels::key(const Eigen::Vector3i& voxel) {
@@ -25,43 +23,6 @@ std::uint64_t ReflectanceVoxels::key(const Eigen::Vector3i& voxel) {
 
 Eigen::Vector3i ReflectanceVoxels::voxel_of(const Eigen::Vector3d& p_map) const {
     return (p_map / voxel_size_m_).array().floor().cast<int>();
-}
-
-std::size_t ReflectanceVoxels::slot_of(std::uint64_t key) const {
-    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> (64 - table_bits_));
-}
-
-std::int64_t ReflectanceVoxels::find(std::uint64_t key) const {
-    const std::size_t mask = table_.size() - 1;
-    for (std::size_t slot = slot_of(key);; slot = (slot + 1) & mask) {
-        if (table_[slot].key == key) return table_[slot].cell;
-        if (table_[slot].key == kNoKey) return -1;
-    }
-}
-
-std::uint32_t ReflectanceVoxels::find_or_insert(std::uint64_t key) {
-    if (2 * (sums_.size() + 1) > table_.size()) grow();
-    const std::size_t mask = table_.size() - 1;
-    std::size_t slot = slot_of(key);
-    for (; table_[slot].key != kNoKey; slot = (slot + 1) & mask) {
-        if (table_[slot].key == key) return table_[slot].cell;
-    }
-    table_[slot] = {key, static_cast<std::uint32_t>(sums_.size())};
-    sums_.emplace_back();
-    return table_[slot].cell;
-}
-
-void ReflectanceVoxels::grow() {
-    const std::vector<Slot> old = std::move(table_);
-    ++table_bits_;
-    table_.assign(std::size_t{1} << table_bits_, Slot{});
-    const std::size_t mask = table_.size() - 1;
-    for (const Slot& entry : old) {
-        if (entry.key == kNoKey) continue;
-        std::size_t slot = slot_of(entry.key);
-        while (table_[slot].key != kNoKey) slot = (slot + 1) & mask;
-        table_[slot] = entry;
-    }
 }
 
 void ReflectanceVoxels::add(const std::vector<Eigen::Vector3d>& points_map,
@@ -79,7 +40,8 @@ void ReflectanceVoxels::add(const std::vector<Eigen::Vector3d>& points_map,
     for (std::size_t i = 0; i < points_map.size(); ++i) {
         if (!std::isfinite(intensity[i]) || !points_map[i].allFinite()) continue;
         if ((points_map[i].array().abs() / voxel_size_m_ > kLimit).any()) continue;
-        const std::uint32_t index = find_or_insert(key(voxel_of(points_map[i])));
+        const std::uint32_t index = voxels_.find_or_insert(key(voxel_of(points_map[i])));
+        if (index == sums_.size()) sums_.emplace_back();
         Sums& cell = sums_[index];
         cell.intensity_sum += intensity[i];
         cell.position_sum += points_map[i];
@@ -109,7 +71,7 @@ float ReflectanceVoxels::at(const Eigen::Vector3d& p_map) const {
     for (int dz = -1; dz <= 1; ++dz) {
         for (int dy = -1; dy <= 1; ++dy) {
             for (int dx = -1; dx <= 1; ++dx) {
-                const std::int64_t index = find(key(centre + Eigen::Vector3i(dx, dy, dz)));
+                const std::int64_t index = voxels_.find(key(centre + Eigen::Vector3i(dx, dy, dz)));
                 if (index < 0) continue;
                 const Mean& cell = means_[static_cast<std::size_t>(index)];
                 const double w =

@@ -9,6 +9,7 @@
 #include <cstdint>
 
 #include "shine/core/error.hpp"
+#include "shine/core/key_index_table.hpp"
 #include "shine/core/random.hpp"
 
 namespace shine {
@@ -29,65 +30,7 @@ std::uint64_t voxel_key(const Eigen::Vector3f& p, double voxel_size_m) {
 }
 
 /// voxel_key's value for a point outside the range window (voxel keys use 63 bits).
-constexpr std::uint64_t kNoVoxel = ~std::uint64_t(0);
-
-/// Voxels (keys other than kNoVoxel) with the point drawn in each: the smallest mix_seed(index)
-/// of the points offered for it.
-class VoxelTable {
-  public:
-    VoxelTable() { slots_.assign(kInitialSlots, Slot{}); }
-
-    void offer(std::uint64_t key, std::size_t index) {
-        const std::uint64_t rank = mix_seed(index);
-        Slot* slot = find(key);
-        if (slot->key == kNoVoxel) {
-            *slot = Slot{key, index, rank};
-            if (++size_ * 2 > slots_.size()) grow();
-        } else if (rank < slot->rank) {
-            slot->index = index;
-            slot->rank = rank;
-        }
-    }
-
-    std::size_t size() const { return size_; }
-
-    /// Sets chosen[i] for the drawn point i of every voxel.
-    void mark(std::vector<std::uint8_t>& chosen) const {
-        for (const Slot& slot : slots_) {
-            if (slot.key != kNoVoxel) chosen[slot.index] = 1;
-        }
-    }
-
-  private:
-    static constexpr std::size_t kInitialSlots = 4096;  // 2^12
-    struct Slot {
-        std::uint64_t key = kNoVoxel;
-        std::size_t index = 0;
-        std::uint64_t rank = 0;
-    };
-
-    /// The key's slot, or the empty slot where it would go.
-    Slot* find(std::uint64_t key) {
-        // Fibonacci hashing: the product's top bits depend on all of the key's.
-        const std::size_t mask = slots_.size() - 1;
-        std::size_t at = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
-        while (slots_[at].key != kNoVoxel && slots_[at].key != key) at = (at + 1) & mask;
-        return &slots_[at];
-    }
-
-    void grow() {
-        --shift_;
-        std::vector<Slot> old(slots_.size() * 2, Slot{});
-        old.swap(slots_);
-        for (const Slot& slot : old) {
-            if (slot.key != kNoVoxel) *find(slot.key) = slot;
-        }
-    }
-
-    std::vector<Slot> slots_;
-    std::size_t size_ = 0;
-    int shift_ = 64 - 12;  ///< 64 - log2(slots_.size())
-};
+constexpr std::uint64_t kNoVoxel = KeyIndexTable::kNoKey;
 
 }  // namespace
 }  // namespace registration_points_internal
@@ -132,15 +75,27 @@ std::vector<std::size_t> select_registration_point_indices(
                       });
     // Per voxel, the point whose index has the smallest hash: a draw independent of where the
     // point lies in the voxel or in the scan (header). mix_seed is a bijection, so the draw has
-    // no ties. An open-addressing table of the voxels so far (linear probing, at most half full).
-    registration_points_internal::VoxelTable table;
+    // no ties.
+    KeyIndexTable voxels;
+    std::vector<std::size_t> drawn;    // per voxel: the point drawn so far
+    std::vector<std::uint64_t> ranks;  // and its hash
     for (std::size_t i = 0; i < n; ++i) {
-        if (keys[i] != kNoVoxel) table.offer(keys[i], i);
+        if (keys[i] == kNoVoxel) continue;
+        bool inserted = false;
+        const std::uint32_t voxel = voxels.find_or_insert(keys[i], &inserted);
+        const std::uint64_t rank = mix_seed(i);
+        if (inserted) {
+            drawn.push_back(i);
+            ranks.push_back(rank);
+        } else if (rank < ranks[voxel]) {
+            drawn[voxel] = i;
+            ranks[voxel] = rank;
+        }
     }
     // Ascending: marked, then collected in order.
     std::vector<std::uint8_t> chosen(n, 0);
-    table.mark(chosen);
-    out.reserve(table.size());
+    for (const std::size_t i : drawn) chosen[i] = 1;
+    out.reserve(drawn.size());
     for (std::size_t i = 0; i < n; ++i) {
         if (chosen[i]) out.push_back(i);
     }

@@ -1,6 +1,6 @@
 // The LiDAR's reflectance fused onto the surface: every measured point's intensity accumulated in
-// a sparse voxel hash (sum, count and mean position per voxel; an open-addressing table whose
-// voxels keep their means ready for reading), then read at surface points as a
+// a sparse voxel hash (sum, count and mean position per voxel, the means kept ready for reading),
+// then read at surface points as a
 // Gaussian-weighted mean over the voxels around them.
 //
 // A LiDAR return lies on the first surface along its ray, so no occlusion test is needed: unlike
@@ -11,6 +11,8 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <vector>
+
+#include "shine/core/key_index_table.hpp"
 
 namespace shine {
 
@@ -47,24 +49,11 @@ class ReflectanceVoxels {
         double count;
         double intensity;
     };
-    static constexpr std::uint64_t kNoKey = ~std::uint64_t{0};  ///< keys use 63 bits
-    struct Slot {
-        std::uint64_t key = kNoKey;
-        std::uint32_t cell = 0;  ///< index into sums_ and means_
-    };
-
-    static std::uint64_t key(const Eigen::Vector3i& voxel);
+    static std::uint64_t key(const Eigen::Vector3i& voxel);  ///< 63 bits: never kNoKey
     Eigen::Vector3i voxel_of(const Eigen::Vector3d& p_map) const;
-    std::size_t slot_of(std::uint64_t key) const;
-    /// The voxel of `key` (index into sums_ and means_), or -1.
-    std::int64_t find(std::uint64_t key) const;
-    std::uint32_t find_or_insert(std::uint64_t key);
-    void grow();
 
     double voxel_size_m_;
-    /// Linear-probing hash table from key to voxel, a power of two long and at most half full.
-    std::vector<Slot> table_;
-    int table_bits_ = 0;
+    KeyIndexTable voxels_;     ///< key -> index into sums_ and means_
     std::vector<Sums> sums_;   ///< one per voxel, in order of first point
     std::vector<Mean> means_;  ///< same order
     std::uint32_t adds_ = 0;   ///< add() calls so far
