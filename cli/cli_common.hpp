@@ -86,6 +86,10 @@ std::vector<Eigen::Isometry3d> heldout_poses_local_to_estimate(
 void add_holdout_option(CLI::App* cmd, int& holdout_every);
 
 /// Seconds since `start`.
+/// A simulated sequence with noisy poses (`shine simulate --pose-noise-m`) keeps the true poses
+/// beside them in this file; `shine map` scores its map also in their frame.
+inline constexpr const char* kTruePosesFile = "poses_true.txt";
+
 inline double seconds_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }

@@ -328,62 +328,111 @@ nlohmann::json deskew_to_json(const DeskewConfig& config, const DeskewStats& sta
     return json;
 }
 
-/// With estimated poses and a sequence that has poses of its own: the mesh scored again after the
-/// SE(3) alignment of the registered scans' estimated poses to the data's (Umeyama over their
-/// positions and axes), so that the estimate's drift against the data's frame and the map's own
-/// accuracy show apart (stats.json "eval_aligned"). A small rotation matters: 0.1 deg moves a
-/// surface 50 m away by 9 cm, the street's whole threshold.
-void evaluate_aligned_to_data_poses(const TriangleMesh& mesh, const TriangleMesh& reference,
-                                    const EvalConfig& eval_config, const ScanOdometry& odometry,
-                                    const ScanSequence& selected, const HoldoutSplit& split,
-                                    nlohmann::json& json) {
+/// The mesh scored again after the SE(3) alignment of the map's poses (`estimated`) to paired
+/// reference poses (`reference`; Umeyama over their positions and axes), so that the frame the
+/// map was made in and the map's own accuracy show apart: stats.json `key`. With estimated poses
+/// the reference is the data's poses (the estimate's drift against them not counted); with
+/// refined poses of a simulated sequence with noisy poses, the true ones (the frame the noisy
+/// poses leave undetermined not counted). A small rotation matters: 0.1 deg moves a surface
+/// 50 m away by 9 cm, the street's whole threshold.
+void evaluate_aligned(const TriangleMesh& mesh, const TriangleMesh& reference,
+                      const EvalConfig& eval_config,
+                      const std::vector<Eigen::Isometry3d>& estimated,
+                      const std::vector<Eigen::Isometry3d>& reference_poses, const char* key,
+                      const char* transform_key, const std::string& description,
+                      nlohmann::json& json) {
     // Each pose contributes its position and the points kAxisM along its three axes: positions
     // alone leave the rotation about the line of a straight drive undetermined (8 scans of a
     // street: 1 deg off); with the axes the poses' orientations fix it.
     constexpr double kAxisM = 10.0;
-    const std::vector<Eigen::Isometry3d>& poses = odometry.poses();
-    std::vector<Eigen::Vector3d> estimated, data;
-    std::size_t scans = 0;
-    for (std::size_t m = 0; m < poses.size() && m < split.mapped.size(); ++m) {
-        if (!odometry.mapped(m)) continue;  // a skipped scan's pose is only the prediction
-        const Eigen::Isometry3d& est = poses[m];
-        const Eigen::Isometry3d& dat = selected.pose(split.mapped[m]);
-        estimated.push_back(est.translation());
-        data.push_back(dat.translation());
+    std::vector<Eigen::Vector3d> from, to;
+    for (std::size_t i = 0; i < estimated.size() && i < reference_poses.size(); ++i) {
+        from.push_back(estimated[i].translation());
+        to.push_back(reference_poses[i].translation());
         for (int axis = 0; axis < 3; ++axis) {
-            estimated.push_back(est * (kAxisM * Eigen::Vector3d::Unit(axis)));
-            data.push_back(dat * (kAxisM * Eigen::Vector3d::Unit(axis)));
+            from.push_back(estimated[i] * (kAxisM * Eigen::Vector3d::Unit(axis)));
+            to.push_back(reference_poses[i] * (kAxisM * Eigen::Vector3d::Unit(axis)));
         }
-        ++scans;
     }
+    const std::size_t scans = from.size() / 4;
     SimilarityTransform alignment;
     try {
-        alignment = umeyama_alignment(estimated, data, /*with_scale=*/false);
+        alignment = umeyama_alignment(from, to, /*with_scale=*/false);
     } catch (const DataError& e) {
-        std::printf("no accuracy after aligning the estimated trajectory: %s\n", e.what());
+        std::printf("no accuracy %s: %s\n", description.c_str(), e.what());
         return;
     }
-    Eigen::Isometry3d T_data_estimate = Eigen::Isometry3d::Identity();
-    T_data_estimate.linear() = alignment.R;
-    T_data_estimate.translation() = alignment.t;
+    Eigen::Isometry3d T_reference_estimate = Eigen::Isometry3d::Identity();
+    T_reference_estimate.linear() = alignment.R;
+    T_reference_estimate.translation() = alignment.t;
     const double rotation_deg = Eigen::AngleAxisd(alignment.R).angle() * 180.0 / EIGEN_PI;
     const MeshMetrics aligned =
-        evaluate_meshes(moved_in_world(mesh, T_data_estimate), reference, eval_config);
-    nlohmann::json& j = json["eval_aligned"];
+        evaluate_meshes(moved_in_world(mesh, T_reference_estimate), reference, eval_config);
+    nlohmann::json& j = json[key];
     j = nlohmann::json::parse(metrics_to_json(aligned));
     j["alignment"] = {
         {"method", "se3, positions and axes"},
         {"scans", scans},
         {"rotation_deg", rotation_deg},
         {"translation_m", alignment.t.norm()},
-        {"T_data_estimate",
+        {transform_key,
          {{alignment.R(0, 0), alignment.R(0, 1), alignment.R(0, 2), alignment.t(0)},
           {alignment.R(1, 0), alignment.R(1, 1), alignment.R(1, 2), alignment.t(1)},
           {alignment.R(2, 0), alignment.R(2, 1), alignment.R(2, 2), alignment.t(2)}}}};
-    std::printf(
-        "accuracy with the estimated trajectory aligned to the data's poses (SE(3) over %zu "
-        "scans: %.4f deg, %.4f m; the drift against the data's frame not counted):\n%s",
-        scans, rotation_deg, alignment.t.norm(), format_metrics(aligned).c_str());
+    std::printf("accuracy %s (SE(3) over %zu scans: %.4f deg, %.4f m):\n%s", description.c_str(),
+                scans, rotation_deg, alignment.t.norm(), format_metrics(aligned).c_str());
+}
+
+/// The estimated poses of the registered scans and the data's poses of the same scans.
+void evaluate_aligned_to_data_poses(const TriangleMesh& mesh, const TriangleMesh& reference,
+                                    const EvalConfig& eval_config, const ScanOdometry& odometry,
+                                    const ScanSequence& selected, const HoldoutSplit& split,
+                                    nlohmann::json& json) {
+    const std::vector<Eigen::Isometry3d>& poses = odometry.poses();
+    std::vector<Eigen::Isometry3d> estimated, data;
+    for (std::size_t m = 0; m < poses.size() && m < split.mapped.size(); ++m) {
+        if (!odometry.mapped(m)) continue;  // a skipped scan's pose is only the prediction
+        estimated.push_back(poses[m]);
+        data.push_back(selected.pose(split.mapped[m]));
+    }
+    evaluate_aligned(mesh, reference, eval_config, estimated, data, "eval_aligned",
+                     "T_data_estimate",
+                     "with the estimated trajectory aligned to the data's poses (the drift "
+                     "against the data's frame not counted)",
+                     json);
+}
+
+/// With refined poses of a sequence that has kTruePosesFile: the mapped scans' refined poses and
+/// their true ones (by frame number; skipped with a note when the file has too few lines).
+void evaluate_aligned_to_true_poses(const TriangleMesh& mesh, const TriangleMesh& reference,
+                                    const EvalConfig& eval_config,
+                                    const std::vector<Eigen::Isometry3d>& refined,
+                                    const ScanSequence& selected, const HoldoutSplit& split,
+                                    nlohmann::json& json) {
+    const fs::path path = selected.directory() / kTruePosesFile;
+    std::vector<Eigen::Isometry3d> truth;
+    try {
+        truth = read_kitti_poses(path);
+    } catch (const Error& e) {  // a diagnostic: the map and its other scores stand
+        std::printf("no accuracy against %s: %s\n", path.c_str(), e.what());
+        return;
+    }
+    std::vector<Eigen::Isometry3d> estimated, true_poses;
+    for (const std::size_t i : split.mapped) {
+        const std::size_t line = selected.frame_number(i);
+        if (line >= truth.size() || i >= refined.size()) {
+            std::printf("no accuracy against %s: it has %zu poses, scan %zu needs line %zu\n",
+                        path.c_str(), truth.size(), i, line + 1);
+            return;
+        }
+        estimated.push_back(refined[i]);
+        true_poses.push_back(truth[line]);
+    }
+    evaluate_aligned(mesh, reference, eval_config, estimated, true_poses, "eval_aligned_to_true",
+                     "T_true_refined",
+                     "with the refined poses aligned to " + path.string() +
+                         " (the frame the noisy given poses leave undetermined not counted)",
+                     json);
 }
 
 /// The stage profile: per stage the median over frames and the run total, plus per frame.
@@ -739,6 +788,7 @@ int run_map(const MapOptions& given_options) {
     // corrections of the mapped scans around them (never with their own points).
     ScanSequence scored = selected;
     nlohmann::json refine_json;
+    std::vector<Eigen::Isometry3d> refined;  // with pose refinement: every selected scan's pose
     if (batch_map && !batch_map->refinement.empty()) {
         // The poses the map started from: the data's, or with estimated poses the estimates
         // (held-out scans placed next to them).
@@ -748,7 +798,7 @@ int run_map(const MapOptions& given_options) {
             given =
                 heldout_poses_local_to_estimate(selected, split, odometry_run->odometry->poses());
         }
-        const std::vector<Eigen::Isometry3d> refined =
+        refined =
             poses_with_corrections(selected, split.mapped, given, batch_map->refined_poses_world);
         write_kitti_poses(out / "poses_refined.txt", refined);
         std::vector<StampedPose> stamped(refined.size());
@@ -941,6 +991,11 @@ int run_map(const MapOptions& given_options) {
         std::printf("accuracy against %s:\n%s", ref.c_str(), format_metrics(metrics).c_str());
         if (odometry && selected.has_poses()) {
             evaluate_aligned_to_data_poses(mesh, reference, eval_config, *odometry, selected, split,
+                                           json);
+        }
+        if (!refined.empty() && !selected.from_recording() &&
+            fs::exists(selected.directory() / kTruePosesFile)) {
+            evaluate_aligned_to_true_poses(mesh, reference, eval_config, refined, selected, split,
                                            json);
         }
         json["seconds"]["eval"] = seconds_since(t0);

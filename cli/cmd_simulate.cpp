@@ -128,10 +128,9 @@ int run_route(const SimulateOptions& options, const sim::SimulationConfig& stree
     return 0;
 }
 
-/// The pose files of a simulated sequence: the poses it writes, and their true twin when the
-/// poses carry noise.
+/// The pose file of a simulated sequence (its true twin when the poses carry noise:
+/// kTruePosesFile, cli_common.hpp).
 constexpr const char* kPosesFile = "poses.txt";
-constexpr const char* kTruePosesFile = "poses_true.txt";
 
 /// The bytes of a file the simulation wrote; IoError naming it if it cannot be read.
 std::string read_file(const std::filesystem::path& path) {
