@@ -2,6 +2,7 @@
 // box that one scan sees and the next does not.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -104,6 +105,170 @@ TEST(RangeImage, PreparedWindowGivesTheBinByBinLookup) {
     RangeImage image(scan);
     image.prepare_window(-1);
     EXPECT_EQ(image.window_radius_bins(), -1);
+}
+
+TEST(RangeImage, FastArctangentStaysWithinItsBound) {
+    // Directions of every octant and magnitude ratio, from 1e-4 m to 1e4 m: the largest
+    // difference to std::atan2 must stay far below the bound the lookups rely on.
+    Pcg32 rng(45);
+    float largest_rad = 0.0f;
+    for (int i = 0; i < 4000000; ++i) {
+        const float x =
+            (2.0f * rng.uniform() - 1.0f) * std::pow(10.0f, 8.0f * rng.uniform() - 4.0f);
+        const float y =
+            (2.0f * rng.uniform() - 1.0f) * std::pow(10.0f, 8.0f * rng.uniform() - 4.0f);
+        largest_rad = std::max(largest_rad,
+                               std::abs(range_image_internal::fast_atan2(y, x) - std::atan2(y, x)));
+    }
+    // The axes and diagonals, where the octant logic switches.
+    for (const float x : {-2.0f, -1.0f, -0.0f, 0.0f, 1.0f, 3.0f}) {
+        for (const float y : {-2.0f, -1.0f, 0.0f, 1.0f, 3.0f}) {
+            if (x == 0.0f && y == 0.0f) continue;
+            largest_rad = std::max(
+                largest_rad, std::abs(range_image_internal::fast_atan2(y, x) - std::atan2(y, x)));
+        }
+    }
+    EXPECT_LT(largest_rad, range_image_internal::kFastAngleErrorRad / 20.0f);
+}
+
+TEST(RangeImage, LookupsOnBinEdgesFindStdAtan2sBins) {
+    // An image with a different range in every bin and a window of one bin (radius 0): a lookup
+    // in another bin than std::atan2's would read another range. Directions drawn at random and
+    // directions exactly on (and a few float steps beside) the column and row edges, where the
+    // lookups must fall back to std::atan2.
+    std::vector<Eigen::Vector3f> scan;
+    Pcg32 rng(46);
+    for (int ring = 0; ring < 64; ++ring) {
+        const float el = (-24.8f + 26.8f * ring / 63.0f) * kPi / 180.0f;
+        for (int col = 0; col < 1800; ++col) {
+            const float az = -kPi + (col + rng.uniform()) * 2.0f * kPi / 1800.0f;
+            const Eigen::Vector3f d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                                    std::sin(el));
+            scan.push_back((2.0f + 60.0f * rng.uniform()) * d);
+        }
+    }
+    RangeImage image(scan);
+    image.prepare_window(0);
+    ASSERT_EQ(image.window_radius_bins(), 0);
+    float el_min_rad = 10.0f;
+    for (const Eigen::Vector3f& p : scan) {
+        el_min_rad = std::min(el_min_rad, std::atan2(p.z(), std::hypot(p.x(), p.y())));
+    }
+    const float bin_rad = image.bin_rad();
+    int compared = 0, with_return = 0;
+    const auto compare = [&](float az, float el, float scale) {
+        const Eigen::Vector3f d =
+            scale *
+            Eigen::Vector3f(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+        const RangeLookup fast = image.nearest_around(d, 0);
+        const RangeLookup plain = image.nearest_around_bins(d, 0);
+        ASSERT_EQ(fast.returns, plain.returns) << az << " " << el;
+        ASSERT_EQ(fast.min_range_m, plain.min_range_m) << az << " " << el;
+        ++compared;
+        with_return += fast.returns > 0;
+    };
+    for (int i = 0; i < 200000; ++i) {
+        compare((2.0f * rng.uniform() - 1.0f) * kPi, (2.0f * rng.uniform() - 1.0f) * 0.5f,
+                0.1f + 50.0f * rng.uniform());
+    }
+    for (int col = 0; col <= image.cols(); col += 7) {
+        for (int row = -2; row <= image.rows() + 2; row += 3) {
+            float az = -kPi + col * bin_rad;
+            float el = el_min_rad + row * bin_rad;
+            for (int step = 0; step < 3; ++step) {
+                az = std::nextafter(az, -10.0f);
+                el = std::nextafter(el, -10.0f);
+            }
+            for (int step = 0; step < 7; ++step) {
+                compare(az, el, 1.0f + step);
+                compare(az, el + 0.5f * bin_rad, 1.0f);
+                compare(az + 0.5f * bin_rad, el, 1.0f);
+                az = std::nextafter(az, 10.0f);
+                el = std::nextafter(el, 10.0f);
+            }
+        }
+    }
+    EXPECT_GT(compared, 300000);
+    EXPECT_GT(with_return, compared / 4);
+}
+
+TEST(RangeImage, FastAnglesBuildTheImageOfStdAtan2) {
+    // 64 rings at jittered elevations and azimuths, returns at random ranges (so that a return in
+    // another bin shows), and a few odd points (on the axis, tiny, huge, not finite): the image
+    // equals the one built with std::atan2 for every return, bin for bin. (The points on the
+    // axis stretch the image from -90 to +90 deg.)
+    Pcg32 rng(47);
+    for (const int columns : {1800, 1024, 361}) {
+        std::vector<Eigen::Vector3f> scan;
+        for (int ring = 0; ring < 64; ++ring) {
+            for (int col = 0; col < columns; ++col) {
+                const float el =
+                    (-24.8f + 26.8f * (ring + 0.3f * rng.uniform()) / 63.0f) * kPi / 180.0f;
+                const float az = -kPi + (col + rng.uniform()) * 2.0f * kPi / columns;
+                const Eigen::Vector3f d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                                        std::sin(el));
+                scan.push_back((2.0f + 60.0f * rng.uniform()) * d);
+            }
+        }
+        scan.emplace_back(0.0f, 0.0f, 3.0f);
+        scan.emplace_back(0.0f, 0.0f, -3.0f);
+        scan.emplace_back(1e-20f, -1e-20f, 1e-20f);
+        scan.emplace_back(1e20f, 3e19f, -1e19f);
+        scan.emplace_back(std::nanf(""), 1.0f, 0.0f);
+        scan.emplace_back(-4.0f, -0.0f, 0.0f);
+        // Returns exactly on (and a few float steps beside) bin edges, where the fast angles
+        // must give way to std::atan2's: placed by an image of as many returns (the bins follow
+        // the count), with the span of elevations they do not change.
+        constexpr int kEdgeReturns = 3000;
+        const std::size_t before = scan.size();
+        scan.resize(before + kEdgeReturns, scan.front());
+        const RangeImage sizing(scan, true);
+        float el_min_rad = 10.0f;
+        for (std::size_t i = 0; i < before; ++i) {  // as the image's lowest elevation
+            const Eigen::Vector3f& p = scan[i];
+            if (!p.allFinite() || !(p.norm() >= 1e-6f)) continue;
+            el_min_rad = std::min(el_min_rad, std::atan2(p.z(), std::hypot(p.x(), p.y())));
+        }
+        for (int k = 0; k < kEdgeReturns; ++k) {
+            const int col = static_cast<int>(rng.uniform() * (sizing.cols() - 1)) + 1;
+            const int row = static_cast<int>(rng.uniform() * (sizing.rows() - 2)) + 1;
+            float az = -kPi + col * sizing.bin_rad();
+            float el = el_min_rad + row * sizing.bin_rad();
+            for (int step = static_cast<int>(rng.uniform() * 7.0f) - 3; step != 0;
+                 step += step > 0 ? -1 : 1) {
+                az = std::nextafter(az, step > 0 ? 10.0f : -10.0f);
+                el = std::nextafter(el, step > 0 ? 10.0f : -10.0f);
+            }
+            scan[before + k] = (2.0f + 60.0f * rng.uniform()) *
+                               Eigen::Vector3f(std::cos(el) * std::cos(az),
+                                               std::cos(el) * std::sin(az), std::sin(el));
+        }
+        const RangeImage fast(scan);
+        const RangeImage reference(scan, true);
+        ASSERT_EQ(fast.rows(), reference.rows());
+        ASSERT_EQ(fast.cols(), reference.cols());
+        ASSERT_EQ(fast.bin_rad(), reference.bin_rad());
+        int compared = 0;
+        const float bin_rad = reference.bin_rad();
+        for (int row = -1; row <= reference.rows(); ++row) {
+            for (int col = 0; col < reference.cols(); ++col) {
+                // Three directions across each bin of the nominal rings' span: equal images
+                // answer every direction alike.
+                for (const float at : {0.25f, 0.5f, 0.75f}) {
+                    const float az = -kPi + (col + at) * bin_rad;
+                    const float el = -24.8f * kPi / 180.0f + (row + at) * bin_rad;
+                    const Eigen::Vector3f d(std::cos(el) * std::cos(az),
+                                            std::cos(el) * std::sin(az), std::sin(el));
+                    const RangeLookup a = fast.nearest_around_bins(d, 0);
+                    const RangeLookup b = reference.nearest_around_bins(d, 0);
+                    ASSERT_EQ(a.returns, b.returns) << row << " " << col;
+                    ASSERT_EQ(a.min_range_m, b.min_range_m) << row << " " << col;
+                    compared += b.returns;
+                }
+            }
+        }
+        EXPECT_GT(compared, columns * 64 / 3);  // 46 % measured: the bins with a return
+    }
 }
 
 TEST(FreeSpaceVotes, ABoxThatLeftIsSeenThroughAndTheWallIsNot) {
