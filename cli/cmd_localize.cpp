@@ -2,6 +2,7 @@
 // changed (mapper/map_localizer.hpp, docs/localize.md). Writes OUT/poses.txt (KITTI),
 // OUT/poses_tum.txt and OUT/stats.json; DATA's own poses, if any, only score the result.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -51,6 +52,44 @@ Eigen::Isometry3d first_pose_of(const std::string& path) {
     return read_tum_poses(path).front().T_world_sensor;
 }
 
+nlohmann::json stage_json(const LocalizeStageSeconds& s) {
+    return {{"selection", s.selection},
+            {"tracking", s.tracking},
+            {"recovery", s.recovery},
+            {"search", s.search},
+            {"sdf_queries", s.sdf_queries},
+            {"acceptance", s.acceptance},
+            {"icp", s.icp}};
+}
+
+/// Per stage, the median over the scans in milliseconds: over all scans, over the tracked ones
+/// and over the others (recovered, searched or bridged), so that the two paths read apart.
+nlohmann::json stage_medians_ms(const std::vector<LocalizeRecord>& records,
+                                const std::vector<double>& load_seconds) {
+    nlohmann::json out;
+    const char* groups[] = {"all", "tracked", "not_tracked"};
+    for (int g = 0; g < 3; ++g) {
+        std::vector<std::vector<double>> values(9);
+        for (std::size_t i = 0; i < records.size(); ++i) {
+            const LocalizeRecord& r = records[i];
+            const bool tracked = r.source == LocalizeSource::kTracked;
+            if ((g == 1 && !tracked) || (g == 2 && tracked)) continue;
+            const LocalizeStageSeconds& s = r.stage_seconds;
+            const double v[9] = {load_seconds[i], s.selection,  s.tracking, s.recovery, s.search,
+                                 s.sdf_queries,   s.acceptance, s.icp,      r.seconds};
+            for (int k = 0; k < 9; ++k) values[k].push_back(1000.0 * v[k]);
+        }
+        if (values[0].empty()) continue;
+        const char* names[] = {"load",        "selection",  "tracking", "recovery", "search",
+                               "sdf_queries", "acceptance", "icp",      "total"};
+        nlohmann::json group;
+        group["scans"] = values[0].size();
+        for (int k = 0; k < 9; ++k) group[names[k]] = median(values[k]);
+        out[groups[g]] = group;
+    }
+    return out;
+}
+
 double rotation_deg(const Eigen::Matrix3d& R) {
     return Eigen::AngleAxisd(R).angle() * 180.0 / M_PI;
 }
@@ -97,10 +136,15 @@ int run_localize(const LocalizeOptions& opt) {
 
     ensure_directory(out);
     std::size_t failures_in_a_row = 0;
+    std::vector<double> load_seconds;
     {
         Progress progress("localize", sequence.size());
         for (std::size_t i = 0; i < sequence.size(); ++i) {
+            const auto load_start = std::chrono::steady_clock::now();
             const Scan scan = sequence.load(i);
+            load_seconds.push_back(
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start)
+                    .count());
             const LocalizeRecord& r = localizer.localize(scan.points_sensor);
             if (!r.localized) {
                 if (!opt.quiet && failures_in_a_row == 0) {
@@ -156,7 +200,9 @@ int run_localize(const LocalizeOptions& opt) {
                             {"status", to_string(r.status)},
                             {"iterations", r.iterations},
                             {"candidates", r.candidates},
-                            {"seconds", r.seconds}});
+                            {"seconds", r.seconds},
+                            {"load_seconds", load_seconds[i]},
+                            {"stage_seconds", stage_json(r.stage_seconds)}});
     }
     const double median_s = median(seconds);
     nlohmann::json json;
@@ -170,6 +216,7 @@ int run_localize(const LocalizeOptions& opt) {
                         {"sources", sources},
                         {"median_seconds_per_scan", median_s},
                         {"max_seconds_per_scan", *std::max_element(seconds.begin(), seconds.end())},
+                        {"stage_medians_ms", stage_medians_ms(records, load_seconds)},
                         {"per_scan", per_scan}};
 
     std::printf(

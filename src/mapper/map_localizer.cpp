@@ -46,6 +46,34 @@ Eigen::Isometry3d turned(const Eigen::Isometry3d& pose, double yaw_rad,
 
 }  // namespace
 
+namespace map_localizer_internal {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+/// `field`, each evaluation's time added to `seconds` (the stage split of LocalizeStageSeconds).
+class TimedSdfField final : public SdfField {
+  public:
+    TimedSdfField(const SdfField& field, double& seconds) : field_(field), seconds_(seconds) {}
+
+    void evaluate(const std::vector<Eigen::Vector3d>& points_world, std::vector<double>& sdf_m,
+                  std::vector<Eigen::Vector3d>& gradient_world,
+                  std::vector<std::uint8_t>& valid) const override {
+        const Clock::time_point start = Clock::now();
+        field_.evaluate(points_world, sdf_m, gradient_world, valid);
+        seconds_ += seconds_since(start);
+    }
+
+  private:
+    const SdfField& field_;
+    double& seconds_;
+};
+
+}  // namespace map_localizer_internal
+
 void validate(const LocalizeConfig& c) {
     require_localize(c.voxel_size_m >= 0.0, "voxel_size_m", "must be >= 0");
     require_localize(c.min_range_m >= 0.0 && c.max_range_m > c.min_range_m, "max_range_m",
@@ -165,7 +193,9 @@ MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& 
         for (int s = fine_only ? 1 : 0; s < 2; ++s) {
             icp.max_correspondence_distance_m = stages[s][0];
             icp.solver.kernel.scale_m = stages[s][1];
+            const auto icp_start = map_localizer_internal::Clock::now();
             const RegistrationResult r = register_point_to_plane(points, pose, *surface_, icp);
+            stage_seconds_.icp += map_localizer_internal::seconds_since(icp_start);
             iterations += r.iterations;
             // A stage that ran out of iterations still moved towards the basin: the next stage
             // (or the SDF) goes on from there.
@@ -174,8 +204,10 @@ MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& 
                 pose = r.accepted() ? r.T_world_sensor : r.T_world_sensor_solved;
             }
         }
+        const auto ratio_start = map_localizer_internal::Clock::now();
         inlier_ratio = point_to_plane_inlier_ratio(
             points, pose, *surface_, config_.icp_correspondence_m, config_.icp_kernel_scale_m);
+        stage_seconds_.icp += map_localizer_internal::seconds_since(ratio_start);
         return pose;
     };
     // The narrow stage alone first (a start within about a metre), then coarse to fine, then
@@ -233,19 +265,24 @@ void MapLocalizer::score(const std::vector<Eigen::Vector3f>& points, const Eigen
     sdf_.query(points_map, QueryMask::kLevel0, sdf_m, inside);
     std::vector<float> residuals;
     residuals.reserve(points.size());
-    std::size_t inliers = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
-        if (!inside[i]) continue;
-        const float r = std::abs(sdf_m[i]);
-        residuals.push_back(r);
+        if (inside[i]) residuals.push_back(std::abs(sdf_m[i]));
+    }
+    summarise(residuals, points.size(), inlier_ratio, valid, residual_m);
+}
+
+void MapLocalizer::summarise(std::vector<float>& abs_residuals_m, std::size_t points,
+                             double& inlier_ratio, std::size_t& valid, double& residual_m) const {
+    std::size_t inliers = 0;
+    for (const float r : abs_residuals_m) {
         if (r <= config_.inlier_distance_m) ++inliers;
     }
-    valid = residuals.size();
-    inlier_ratio = points.empty() ? 0.0 : static_cast<double>(inliers) / points.size();
+    valid = abs_residuals_m.size();
+    inlier_ratio = points == 0 ? 0.0 : static_cast<double>(inliers) / points;
     residual_m = 0.0;
-    if (!residuals.empty()) {
-        auto middle = residuals.begin() + residuals.size() / 2;
-        std::nth_element(residuals.begin(), middle, residuals.end());
+    if (!abs_residuals_m.empty()) {
+        auto middle = abs_residuals_m.begin() + abs_residuals_m.size() / 2;
+        std::nth_element(abs_residuals_m.begin(), middle, abs_residuals_m.end());
         residual_m = *middle;
     }
 }
@@ -254,7 +291,8 @@ MapLocalizer::Attempt MapLocalizer::track(const std::vector<Eigen::Vector3f>& po
                                           const Eigen::Isometry3d& start) const {
     Attempt attempt;
     attempt.pose = start;
-    const NeuralSdfField field(sdf_);
+    const NeuralSdfField neural_field(sdf_);
+    const map_localizer_internal::TimedSdfField field(neural_field, stage_seconds_.sdf_queries);
     Eigen::Isometry3d from = start;
     bool last_accepted = false;
     for (const double scale_m : config_.kernel_scales_m) {
@@ -275,7 +313,9 @@ MapLocalizer::Attempt MapLocalizer::track(const std::vector<Eigen::Vector3f>& po
         if (last_accepted) from = result.T_world_sensor;
     }
     attempt.pose = from;
+    const auto score_start = map_localizer_internal::Clock::now();
     score(points, from, attempt.inlier_ratio, attempt.valid, attempt.residual_m);
+    stage_seconds_.acceptance += map_localizer_internal::seconds_since(score_start);
     attempt.localized = last_accepted && attempt.inlier_ratio >= config_.min_inlier_ratio;
     return attempt;
 }
@@ -353,7 +393,10 @@ MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& p
 }
 
 const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>& points_sensor) {
-    const auto start_time = std::chrono::steady_clock::now();
+    using map_localizer_internal::Clock;
+    using map_localizer_internal::seconds_since;
+    const Clock::time_point start_time = Clock::now();
+    stage_seconds_ = LocalizeStageSeconds{};
     RegistrationPointConfig selection;
     selection.min_range_m = config_.min_range_m;
     selection.max_range_m = config_.max_range_m;
@@ -364,6 +407,7 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     // the pose, need more to tell the right minimum from a wrong one.
     const std::vector<Eigen::Vector3f> points = thinned(selected, config_.max_points);
     const std::vector<Eigen::Vector3f> wide = thinned(selected, config_.recovery_max_points);
+    stage_seconds_.selection = seconds_since(start_time);
 
     LocalizeRecord record;
     record.points = points.size();
@@ -372,7 +416,13 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     // The global search (only when it runs): around the map's places; without them around the
     // prediction and the last localised pose, farther (lost_search_radius_m).
     const auto global_search = [&]() {
-        if (!places_.empty()) return search(wide, places_, config_.search_radius_m);
+        const Clock::time_point search_start = Clock::now();
+        Attempt found;
+        if (!places_.empty()) {
+            found = search(wide, places_, config_.search_radius_m);
+            stage_seconds_.search += seconds_since(search_start);
+            return found;
+        }
         std::vector<Eigen::Isometry3d> centres = {predicted};
         for (auto r = records_.rbegin(); r != records_.rend(); ++r) {
             if (!r->localized) continue;
@@ -382,8 +432,10 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
             }
             break;
         }
-        return search(wide, centres,
-                      std::max(config_.search_radius_m, config_.lost_search_radius_m));
+        found =
+            search(wide, centres, std::max(config_.search_radius_m, config_.lost_search_radius_m));
+        stage_seconds_.search += seconds_since(search_start);
+        return found;
     };
 
     Attempt attempt;
@@ -394,14 +446,18 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
         source = LocalizeSource::kGlobalSearch;
         record.points = wide.size();
     } else {
+        const Clock::time_point tracking_start = Clock::now();
         attempt = track(points, predicted);
+        stage_seconds_.tracking = seconds_since(tracking_start);
         if (!attempt.localized) {
             iterations += attempt.iterations;
             // The headings turn the last pose: where the motion changed, the prediction
             // extrapolates the error (the odometry's rule, odometry_config.hpp).
             const Eigen::Isometry3d last =
                 records_.empty() ? predicted : records_.back().T_world_sensor;
+            const Clock::time_point recovery_start = Clock::now();
             attempt = recover(wide, predicted, &last);
+            stage_seconds_.recovery = seconds_since(recovery_start);
             source = LocalizeSource::kRecovered;
             record.points = wide.size();
         }
@@ -428,8 +484,8 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     record.iterations = iterations;
     record.candidates = attempt.candidates;
     failures_in_a_row_ = record.localized ? 0 : failures_in_a_row_ + 1;
-    record.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+    record.seconds = seconds_since(start_time);
+    record.stage_seconds = stage_seconds_;
     records_.push_back(record);
     return records_.back();
 }

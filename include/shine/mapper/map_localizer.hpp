@@ -97,6 +97,19 @@ enum class LocalizeSource : std::uint8_t {
 /// "tracked" / "recovered" / "global-search" / "prediction".
 const char* to_string(LocalizeSource source);
 
+/// Where a scan's time went (seconds, steady clock). selection + tracking + recovery + search is
+/// about the record's `seconds` (a scan not localised is scored once more at the prediction); the
+/// last three are parts of tracking, recovery and search, summed over all three.
+struct LocalizeStageSeconds {
+    double selection = 0.0;    ///< range window, voxel thinning and the strides
+    double tracking = 0.0;     ///< steps 2-3 from the prediction, the acceptance check included
+    double recovery = 0.0;     ///< step 4 after a failed tracking, its SDF registration included
+    double search = 0.0;       ///< step 5, its candidates' scores, ICP and SDF registrations
+    double sdf_queries = 0.0;  ///< the SDF registrations' field evaluations (value and gradient)
+    double acceptance = 0.0;   ///< step 3's share of points near the surface
+    double icp = 0.0;          ///< ICP against the surface and its share of points on a plane
+};
+
 /// What localisation did with one scan.
 struct LocalizeRecord {
     Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
@@ -111,6 +124,7 @@ struct LocalizeRecord {
     std::int32_t iterations = 0;  ///< over all registrations of the scan
     std::int32_t candidates = 0;  ///< poses scored by a search (0: no search)
     double seconds = 0.0;         ///< selection, registration and search
+    LocalizeStageSeconds stage_seconds;
 };
 
 /// Localises scan after scan in `sdf`, which it only reads.
@@ -150,6 +164,9 @@ class MapLocalizer {
     /// median |SDF| of the valid ones.
     void score(const std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& pose,
                double& inlier_ratio, std::size_t& valid, double& residual_m) const;
+    /// score()'s figures from the |SDF| of the valid ones of `points` points (reordered).
+    void summarise(std::vector<float>& abs_residuals_m, std::size_t points, double& inlier_ratio,
+                   std::size_t& valid, double& residual_m) const;
     Eigen::Isometry3d prediction() const;
 
     const NeuralSdf& sdf_;
@@ -160,6 +177,8 @@ class MapLocalizer {
     Eigen::Isometry3d initial_pose_ = Eigen::Isometry3d::Identity();
     std::vector<LocalizeRecord> records_;
     int failures_in_a_row_ = 0;
+    /// The scan being localised's stage times (added to by the const steps).
+    mutable LocalizeStageSeconds stage_seconds_;
 };
 
 }  // namespace shine
