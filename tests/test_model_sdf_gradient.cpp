@@ -201,3 +201,55 @@ TEST(SdfGradient, PointsOutsideTheMapAreInvalidWithZeroGradient) {
     EXPECT_EQ(valid[1], 1);
     EXPECT_NE(gradient[1], Eigen::Vector3f::Zero());
 }
+
+// The remembered cells (QueryCellMemory) give the same bits as fresh look-ups, over queries whose
+// points move a little (mostly staying in their cells, as between registration iterations), a lot
+// (into other cells) and out of the map, on float32 and float16 maps.
+TEST(SdfGradient, RememberedCellsGiveTheSameBitsAsFreshLookups) {
+    for (const FeaturePrecision precision :
+         {FeaturePrecision::kFloat32, FeaturePrecision::kFloat16}) {
+        const NeuralSdf sdf = random_map(precision);
+        std::mt19937 rng(5);
+        std::uniform_real_distribution<float> u(-0.1f, 1.1f);  // some points outside the map
+        std::uniform_real_distribution<float> uz(-0.05f, 0.3f);
+        std::normal_distribution<float> small_m(0.0f, 0.003f);  // stays in most cells
+        std::normal_distribution<float> large_m(0.0f, 0.2f);    // crosses cells
+        std::vector<Eigen::Vector3f> points;
+        for (int i = 0; i < 700; ++i) points.emplace_back(u(rng), u(rng), uz(rng));
+        QueryCellMemory memory;
+        int crossed = 0;
+        for (int round = 0; round < 6; ++round) {
+            std::vector<float> value, value_fresh;
+            std::vector<Eigen::Vector3f> gradient, gradient_fresh;
+            std::vector<std::uint8_t> valid, valid_fresh;
+            query_sdf_and_gradient(sdf, points, QueryMask::kAnyLevel, value, gradient, valid,
+                                   &memory);
+            query_sdf_and_gradient(sdf, points, QueryMask::kAnyLevel, value_fresh, gradient_fresh,
+                                   valid_fresh);
+            ASSERT_EQ(valid, valid_fresh) << "round " << round;
+            ASSERT_EQ(value, value_fresh) << "round " << round;  // bit for bit
+            ASSERT_EQ(gradient, gradient_fresh) << "round " << round;
+            for (auto& p : points) {
+                const Eigen::Vector3f before = p;
+                for (int a = 0; a < 3; ++a) p[a] += round % 2 == 0 ? small_m(rng) : large_m(rng);
+                crossed += (before / 0.25f).array().floor().matrix() !=
+                                   (p / 0.25f).array().floor().matrix()
+                               ? 1
+                               : 0;
+            }
+        }
+        EXPECT_GT(crossed, 500);  // the memory was put to the test: many points changed cells
+        // Fewer points than remembered: the memory starts again rather than reading stale cells.
+        points.resize(300);
+        std::vector<float> value, value_fresh;
+        std::vector<Eigen::Vector3f> gradient, gradient_fresh;
+        std::vector<std::uint8_t> valid, valid_fresh;
+        query_sdf_and_gradient(sdf, points, QueryMask::kLevel0, value, gradient, valid, &memory);
+        query_sdf_and_gradient(sdf, points, QueryMask::kLevel0, value_fresh, gradient_fresh,
+                               valid_fresh);
+        EXPECT_EQ(valid, valid_fresh);
+        EXPECT_EQ(value, value_fresh);
+        EXPECT_EQ(gradient, gradient_fresh);
+        EXPECT_EQ(memory.cells.size(), 300u * sdf.octree.num_levels());
+    }
+}
