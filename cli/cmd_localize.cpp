@@ -1,6 +1,8 @@
 // `shine localize MAP DATA -o OUT`: the pose of every scan of DATA in a saved map, which is never
 // changed (mapper/map_localizer.hpp, docs/localize.md). Writes OUT/poses.txt (KITTI),
-// OUT/poses_tum.txt and OUT/stats.json; DATA's own poses, if any, only score the result.
+// OUT/poses_tum.txt and OUT/stats.json; DATA's own poses, if any, only score the result. For a map
+// made at refined poses the poses are written in the frame of the poses the map started from
+// (geometry/pose_frame_correction.hpp), and in the map's own frame as OUT/poses_map.txt.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -42,6 +44,7 @@ struct LocalizeOptions {
     std::string poses_path;
     std::string topic;
     bool quiet = false;
+    bool map_frame = false;  ///< poses.txt in the map's frame even when it has poses_given.txt
 };
 
 /// The first pose of a KITTI (12 numbers a line) or TUM (8) pose file.
@@ -117,7 +120,12 @@ int run_localize(const LocalizeOptions& opt) {
     const std::vector<Eigen::Isometry3d> trajectory =
         saved_map_trajectory(map_file, trajectory_source);
     MapLocalizer localizer(loaded.sdf, opt.config, trajectory);
-    if (initial) localizer.set_initial_pose(*initial);
+    std::string frame_note;
+    std::optional<PoseFrameCorrection> frame;
+    if (!opt.map_frame) frame = saved_map_frame_correction(map_file, frame_note);
+    if (!frame_note.empty()) std::printf("%s\n", frame_note.c_str());
+    // --initial-pose is in the given poses' frame, as the poses written.
+    if (initial) localizer.set_initial_pose(frame ? frame->to_map(*initial) : *initial);
     if (!opt.quiet) {
         std::printf("map %s: %zu feature corners, leaf %.2f m, %zu surface points\n",
                     map_file.c_str(), loaded.sdf.octree.num_corners(),
@@ -179,13 +187,15 @@ int run_localize(const LocalizeOptions& opt) {
     nlohmann::json sources = {
         {"tracked", 0}, {"recovered", 0}, {"global-search", 0}, {"prediction", 0}};
     const double scan_period_s = DeskewConfig{}.scan_period_s;
+    std::vector<Eigen::Isometry3d> poses_map;  // in the map's own frame
     for (std::size_t i = 0; i < records.size(); ++i) {
         const LocalizeRecord& r = records[i];
-        poses.push_back(r.T_world_sensor);
+        poses_map.push_back(r.T_world_sensor);
+        poses.push_back(frame ? frame->to_given(r.T_world_sensor) : r.T_world_sensor);
         stamped[i].timestamp_s = sequence.from_recording()
                                      ? sequence.stamp_s(i)
                                      : sequence.frame_number(i) * scan_period_s;
-        stamped[i].T_world_sensor = r.T_world_sensor;
+        stamped[i].T_world_sensor = poses.back();
         seconds.push_back(r.seconds);
         localized += r.localized ? 1 : 0;
         sources[to_string(r.source)] = sources[to_string(r.source)].get<int>() + 1;
@@ -211,6 +221,12 @@ int run_localize(const LocalizeOptions& opt) {
     json["threads"] = opt.threads;
     json["initial_pose"] = opt.initial_pose_path;
     json["trajectory"] = trajectory_source;
+    char frame_text[192];
+    std::snprintf(frame_text, sizeof(frame_text),
+                  "given: the poses the map started from (poses_given.txt beside it; corrections "
+                  "blended over %.1f m); poses_map.txt holds them in the map's frame",
+                  PoseFrameCorrection::kDefaultSigmaM);
+    json["frame"] = frame ? std::string(frame_text) : std::string("the map's");
     json["localize"] = {{"scans", records.size()},
                         {"localized", localized},
                         {"sources", sources},
@@ -264,9 +280,21 @@ int run_localize(const LocalizeOptions& opt) {
 
     write_kitti_poses(out / "poses.txt", poses);
     write_tum_poses(out / "poses_tum.txt", stamped);
+    if (frame) {
+        write_kitti_poses(out / "poses_map.txt", poses_map);
+        std::vector<StampedPose> stamped_map = stamped;
+        for (std::size_t i = 0; i < stamped_map.size(); ++i) {
+            stamped_map[i].T_world_sensor = poses_map[i];
+        }
+        write_tum_poses(out / "poses_map_tum.txt", stamped_map);
+    }
     write_stream_atomically(out / "stats.json",
                             [&](std::ostream& os) { os << json.dump(2) << "\n"; });
-    if (!opt.quiet) std::printf("wrote %s/{poses.txt, poses_tum.txt, stats.json}\n", out.c_str());
+    if (!opt.quiet) {
+        std::printf("wrote %s/{poses.txt, poses_tum.txt%s, stats.json}%s\n", out.c_str(),
+                    frame ? ", poses_map.txt, poses_map_tum.txt" : "",
+                    frame ? " (poses.txt in the frame of the poses the map started from)" : "");
+    }
     if (localized == 0) {
         throw DataError("none of the " + std::to_string(records.size()) +
                         " scans of DATA was localised in '" + map_file.string() +
@@ -319,6 +347,10 @@ const RegisterCommand kLocalizeCommand(17, [](CLI::App& app, Action& action) {
         ->capture_default_str();
     cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)")
         ->capture_default_str();
+    cmd->add_flag("--map-frame", opt->map_frame,
+                  "write poses.txt in the map's own frame: for a map made at refined poses (with "
+                  "poses_given.txt beside it), poses.txt is otherwise in the frame of the poses "
+                  "it started from, and --initial-pose is read in that frame too");
     cmd->add_flag("-q,--quiet", opt->quiet, "No progress output");
     cmd->callback([opt, &action] { action = [opt] { return run_localize(*opt); }; });
 });

@@ -801,6 +801,9 @@ int run_map(const MapOptions& given_options) {
         refined =
             poses_with_corrections(selected, split.mapped, given, batch_map->refined_poses_world);
         write_kitti_poses(out / "poses_refined.txt", refined);
+        // The poses the map started from, line by line with poses_refined.txt: `shine localize`
+        // reports poses in their frame (geometry/pose_frame_correction.hpp).
+        write_kitti_poses(out / "poses_given.txt", given);
         std::vector<StampedPose> stamped(refined.size());
         for (std::size_t i = 0; i < refined.size(); ++i) {
             stamped[i].timestamp_s =

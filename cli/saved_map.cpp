@@ -37,4 +37,19 @@ std::vector<Eigen::Isometry3d> saved_map_trajectory(const fs::path& map_file, st
     return {};
 }
 
+std::optional<PoseFrameCorrection> saved_map_frame_correction(const fs::path& map_file,
+                                                              std::string& note) {
+    note.clear();
+    const fs::path given_path = map_file.parent_path() / "poses_given.txt";
+    const fs::path refined_path = map_file.parent_path() / "poses_refined.txt";
+    std::error_code ec;
+    if (!fs::exists(given_path, ec) || !fs::exists(refined_path, ec)) return std::nullopt;
+    try {
+        return PoseFrameCorrection(read_kitti_poses(given_path), read_kitti_poses(refined_path));
+    } catch (const Error& e) {
+        note = std::string("poses stay in the map's frame: ") + e.what();
+        return std::nullopt;
+    }
+}
+
 }  // namespace shine::cli

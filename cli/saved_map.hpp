@@ -4,8 +4,11 @@
 
 #include <Eigen/Geometry>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "shine/geometry/pose_frame_correction.hpp"
 
 namespace shine::cli {
 
@@ -19,5 +22,13 @@ std::filesystem::path saved_map_file(const std::string& given, const std::string
 /// there. `source` is set to the file read (empty for none).
 std::vector<Eigen::Isometry3d> saved_map_trajectory(const std::filesystem::path& map_file,
                                                     std::string& source);
+
+/// With pose refinement the map was made at poses_refined.txt, and poses_given.txt beside it
+/// holds the poses it started from, line by line: the correction between the two frames
+/// (geometry/pose_frame_correction.hpp). std::nullopt without both files (no refinement, or a
+/// map written before poses_given.txt existed); `note` then says why when the files are there
+/// but unusable (unreadable, different counts).
+std::optional<PoseFrameCorrection> saved_map_frame_correction(const std::filesystem::path& map_file,
+                                                              std::string& note);
 
 }  // namespace shine::cli

@@ -1,6 +1,7 @@
 // `shine localize MAP DATA -o OUT` on a simulated street: a map of the even scans, the odd scans
 // localised in it from the first one's pose or by the search around the map's trajectory; the
-// map file untouched; a start beyond the search's reach reported, not accepted; bad input named.
+// map file untouched; poses written in the frame of the poses the map started from and in the
+// map's own; a start beyond the search's reach reported, not accepted; bad input named.
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -10,6 +11,7 @@
 #include <string>
 
 #include "cli_test_support.hpp"
+#include "shine/io/kitti.hpp"
 
 namespace fs = std::filesystem;
 using namespace shine::cli_test;
@@ -101,6 +103,60 @@ TEST(LocalizeCli, WithoutAnInitialPoseTheFirstScanIsFoundAlongTheMapsTrajectory)
     EXPECT_GT(first.at("candidates").get<int>(), 0);
     EXPECT_EQ(stats.at("localize").at("localized"), 6);
     EXPECT_LT(stats.at("against_data_poses").at("max_translation_m").get<double>(), 0.03);
+}
+
+TEST(LocalizeCli, PosesAreWrittenInTheFrameTheMapStartedFromAndInTheMapsOwn) {
+    // A copy of the map whose poses_given.txt says the poses it started from were the refined
+    // ones turned by 2 deg about z and moved 0.5 m: poses.txt (and --initial-pose) are in that
+    // frame, poses_map.txt in the map's; --map-frame writes the map's frame only.
+    const fs::path map = test_dir() / "map_other_frame";
+    fs::remove_all(map);
+    fs::create_directories(map);
+    for (const char* name : {"map.vdb", "poses_refined.txt"}) {
+        fs::copy_file(map_dir() / name, map / name);
+    }
+    ASSERT_TRUE(fs::exists(map_dir() / "poses_given.txt"));
+    Eigen::Isometry3d S = Eigen::Isometry3d::Identity();
+    S.linear() = Eigen::AngleAxisd(2.0 * EIGEN_PI / 180.0, Eigen::Vector3d::UnitZ()).matrix();
+    S.translation() = Eigen::Vector3d(0.5, -0.2, 0.1);
+    std::vector<Eigen::Isometry3d> given = shine::read_kitti_poses(map / "poses_refined.txt");
+    for (Eigen::Isometry3d& T : given) T = S * T;
+    shine::write_kitti_poses(map / "poses_given.txt", given);
+    const std::vector<Eigen::Isometry3d> truth = shine::read_kitti_poses(street() / "poses.txt");
+    shine::write_kitti_poses(test_dir() / "first_given.txt", {S * truth[1]});
+
+    const fs::path out = test_dir() / "other_frame";
+    fs::remove_all(out);
+    const CliResult r = run(localize_odd(
+        map, out, "--initial-pose '" + (test_dir() / "first_given.txt").string() + "'"));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_EQ(read_json(out / "stats.json").at("localize").at("localized"), 6);
+    EXPECT_EQ(read_json(out / "stats.json").at("frame").get<std::string>().rfind("given", 0), 0u);
+    const std::vector<Eigen::Isometry3d> poses = shine::read_kitti_poses(out / "poses.txt");
+    const std::vector<Eigen::Isometry3d> in_map = shine::read_kitti_poses(out / "poses_map.txt");
+    ASSERT_EQ(poses.size(), 6u);
+    ASSERT_EQ(in_map.size(), 6u);
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+        // In the map's frame, the odd scan's true pose (measured: within 0.4 cm, as above).
+        EXPECT_LT((in_map[i].translation() - truth[2 * i + 1].translation()).norm(), 0.03) << i;
+        // In the given frame, S of it: the same rigid correction at every scan (to rounding).
+        const Eigen::Isometry3d want = S * in_map[i];
+        EXPECT_LT((poses[i].translation() - want.translation()).norm(), 1e-4) << i;
+        EXPECT_LT(Eigen::AngleAxisd(poses[i].linear().transpose() * want.linear()).angle(), 1e-5)
+            << i;
+    }
+
+    const fs::path own = test_dir() / "own_frame";
+    fs::remove_all(own);
+    const CliResult m = run(localize_odd(
+        map, own, "--map-frame --initial-pose '" + pose_file(1, "first.txt").string() + "'"));
+    ASSERT_EQ(m.exit_code, 0) << m.output;
+    EXPECT_FALSE(fs::exists(own / "poses_map.txt"));
+    const std::vector<Eigen::Isometry3d> plain = shine::read_kitti_poses(own / "poses.txt");
+    ASSERT_EQ(plain.size(), 6u);
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+        EXPECT_LT((plain[i].translation() - in_map[i].translation()).norm(), 0.005) << i;
+    }
 }
 
 TEST(LocalizeCli, AStartBeyondTheSearchsReachIsReportedNotAccepted) {
