@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "shine/core/stopwatch.hpp"
 #include "shine/io/preprocess.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
@@ -85,13 +86,10 @@ std::vector<Eigen::Isometry3d> heldout_poses_local_to_estimate(
 /// --holdout-every N: map without every N-th selected scan and score the result on those.
 void add_holdout_option(CLI::App* cmd, int& holdout_every);
 
-/// Seconds since `start`.
 /// A simulated sequence with noisy poses (`shine simulate --pose-noise-m`) keeps the true poses
 /// beside them in this file; `shine map` scores its map also in their frame.
 inline constexpr const char* kTruePosesFile = "poses_true.txt";
 
-inline double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+// seconds_since(start): shine/core/stopwatch.hpp.
 
 }  // namespace shine::cli

@@ -150,9 +150,7 @@ int run_localize(const LocalizeOptions& opt) {
         for (std::size_t i = 0; i < sequence.size(); ++i) {
             const auto load_start = std::chrono::steady_clock::now();
             const Scan scan = sequence.load(i);
-            load_seconds.push_back(
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start)
-                    .count());
+            load_seconds.push_back(seconds_since(load_start));
             const LocalizeRecord& r = localizer.localize(scan.points_sensor);
             if (!r.localized) {
                 if (!opt.quiet && failures_in_a_row == 0) {

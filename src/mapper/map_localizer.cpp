@@ -9,6 +9,7 @@
 
 #include "shine/bake/level_set_bake.hpp"
 #include "shine/core/error.hpp"
+#include "shine/core/stopwatch.hpp"
 #include "shine/geometry/map_frame.hpp"
 #include "shine/mapper/neural_sdf_field.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
@@ -49,10 +50,6 @@ Eigen::Isometry3d turned(const Eigen::Isometry3d& pose, double yaw_rad,
 namespace map_localizer_internal {
 
 using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// `field`, each evaluation's time added to `seconds` (the stage split of LocalizeStageSeconds).
 class TimedSdfField final : public SdfField {
@@ -253,7 +250,7 @@ MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& 
             const auto icp_start = map_localizer_internal::Clock::now();
             const RegistrationResult r =
                 register_point_to_plane(points, pose, *surface_, icp, nullptr, &matches);
-            stage_seconds_.icp += map_localizer_internal::seconds_since(icp_start);
+            stage_seconds_.icp += seconds_since(icp_start);
             iterations += r.iterations;
             // A stage that ran out of iterations still moved towards the basin: the next stage
             // (or the SDF) goes on from there.
@@ -266,7 +263,7 @@ MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& 
         inlier_ratio =
             point_to_plane_inlier_ratio(points, pose, *surface_, config_.icp_correspondence_m,
                                         config_.icp_kernel_scale_m, &matches);
-        stage_seconds_.icp += map_localizer_internal::seconds_since(ratio_start);
+        stage_seconds_.icp += seconds_since(ratio_start);
         return pose;
     };
     // The narrow stage alone first (a start within about a metre), then coarse to fine, then
@@ -399,7 +396,7 @@ MapLocalizer::Attempt MapLocalizer::track(const std::vector<Eigen::Vector3f>& po
     } else {
         score(points, from, attempt.inlier_ratio, attempt.valid, attempt.residual_m);
     }
-    stage_seconds_.acceptance += map_localizer_internal::seconds_since(score_start);
+    stage_seconds_.acceptance += seconds_since(score_start);
     attempt.localized = last_accepted && attempt.inlier_ratio >= config_.min_inlier_ratio;
     return attempt;
 }
@@ -478,7 +475,6 @@ MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& p
 
 const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>& points_sensor) {
     using map_localizer_internal::Clock;
-    using map_localizer_internal::seconds_since;
     const Clock::time_point start_time = Clock::now();
     stage_seconds_ = LocalizeStageSeconds{};
     RegistrationPointConfig selection;
