@@ -169,6 +169,7 @@ int run_tsdf(const TsdfOptions& opt) {
         volume.memory_bytes() / 1e6, volume.active_voxels());
     std::printf("wrote %s, %s (%zu triangles)\n", (out / "tsdf.vdb").c_str(),
                 (out / "mesh.ply").c_str(), mesh.triangles.size());
+    json["seconds"]["mapping_total"] = seconds_since(start_total);
     if (!ref.empty()) {
         t0 = std::chrono::steady_clock::now();
         const MeshMetrics metrics =
