@@ -66,6 +66,51 @@ std::size_t split_below(IndexedPoint* points, std::size_t count, int axis, float
     return left;
 }
 
+/// Nodes of at most this many points are split by split_below_small.
+constexpr std::size_t kSmallSplitPoints = 4096;
+
+/// split_below for finite coordinates and at most kSmallSplitPoints points, with the same swaps
+/// but without data-dependent branches (the scans of a small node stop at every few points, and
+/// each stop costs a mispredicted branch): split_below swaps the points at or above the cut
+/// among the first `below` ones (those that end below it), in order, with the points below the
+/// cut among the others, from the last one back. Those pairs are listed by passes that only
+/// count, then swapped.
+std::size_t split_below_small(IndexedPoint* points, std::size_t count, int axis, float cut,
+                              bool* on_cut) {
+    std::uint8_t is_below[kSmallSplitPoints];
+    std::size_t below = 0;
+    std::size_t at_or_below = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+        const float v = points[i].position[axis];
+        is_below[i] = v < cut;
+        below += v < cut;
+        at_or_below += v <= cut;
+    }
+    *on_cut = at_or_below != below;
+    std::uint16_t left[kSmallSplitPoints];
+    std::uint16_t right[kSmallSplitPoints];
+    std::size_t pairs = 0;
+    for (std::size_t i = 0; i < below; ++i) {
+        left[pairs] = static_cast<std::uint16_t>(i);
+        pairs += !is_below[i];
+    }
+    std::size_t n_right = 0;
+    for (std::size_t i = count; i-- > below;) {
+        right[n_right] = static_cast<std::uint16_t>(i);
+        n_right += is_below[i];
+    }
+    for (std::size_t p = 0; p < pairs; ++p) std::swap(points[left[p]], points[right[p]]);
+    return below;
+}
+
+/// split_below, by split_below_small where it applies.
+std::size_t split_below_any(IndexedPoint* points, std::size_t count, int axis, float cut,
+                            bool finite, bool* on_cut) {
+    return finite && count <= kSmallSplitPoints
+               ? split_below_small(points, count, axis, cut, on_cut)
+               : split_below(points, count, axis, cut, on_cut);
+}
+
 /// The second pass of nanoflann's planeSplit over [lim1, count), whose points are all at or above
 /// the cut: moves those on the cut to the front of that range; returns the end of them (lim2).
 std::size_t split_on(IndexedPoint* points, std::size_t count, int axis, float cut,
@@ -292,7 +337,7 @@ PointKdTree::Subtree PointKdTree::build(IndexedPoint* points, std::size_t begin,
         axis = only_candidate;
         const float middle = (cell[axis].low + cell[axis].high) / 2;
         cut = middle;
-        lim1 = split_below(p, count, axis, cut, &on_cut);
+        lim1 = split_below_any(p, count, axis, cut, finite_, &on_cut);
         if (lim1 == 0 || lim1 == count) {
             float min_value, max_value;
             coordinate_range(p, count, axis, min_value, max_value);
@@ -301,7 +346,7 @@ PointKdTree::Subtree PointKdTree::build(IndexedPoint* points, std::size_t begin,
             } else if (middle > max_value) {
                 cut = max_value;
             }
-            if (cut != middle) lim1 = split_below(p, count, axis, cut, &on_cut);
+            if (cut != middle) lim1 = split_below_any(p, count, axis, cut, finite_, &on_cut);
         }
     } else {
         // middleSplit_ as it is: the candidate axes' ranges (axis 0's if there is no candidate),
@@ -329,7 +374,7 @@ PointKdTree::Subtree PointKdTree::build(IndexedPoint* points, std::size_t begin,
         } else if (middle > max_value[axis]) {
             cut = max_value[axis];
         }
-        lim1 = split_below(p, count, axis, cut, &on_cut);
+        lim1 = split_below_any(p, count, axis, cut, finite_, &on_cut);
     }
     // The second pass of planeSplit has nothing to move when no point lies on the cut (unless a
     // NaN does, which stops its scans like a point on the wrong side).

@@ -18,6 +18,8 @@
 //   - nodes are 16 bytes in one array, depth first, the first child next to its parent;
 //   - most nodes cut at their cell's middle before looking up their points' range, which is
 //     needed only when all of them lie on one side (the partition has then moved nothing);
+//   - nodes of up to a few thousand points make nanoflann's swaps without its data-dependent
+//     branches: passes that only count list the pairs its scans would swap;
 //   - a leaf's distances and the sorted insertion into the result use SSE2, with the same float
 //     operations in the same order.
 // "Bit for bit" assumes the default x86-64 build: with SHINE_NATIVE the compiler may fuse
