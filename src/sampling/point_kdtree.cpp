@@ -20,11 +20,6 @@
 namespace shine {
 namespace {
 
-#if defined(__SSE2__)
-/// Set bits of a 4-bit mask (without relying on a popcount instruction).
-constexpr int kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
-#endif
-
 /// Nodes with at least this many points build their two children in parallel.
 constexpr std::size_t kParallelBuildPoints = 32768;
 
@@ -131,22 +126,27 @@ std::size_t split_on(IndexedPoint* points, std::size_t count, int axis, float cu
 }  // namespace
 
 /// One query: nanoflann's KNNResultSet, whose worst distance until k points are found is the
-/// search bound it was initialised with. Distances and slots are kept in separate arrays padded to
-/// whole SSE registers, the unused entries at +infinity, so that an insertion is a few branch-free
-/// vector operations.
+/// search bound it was initialised with. Distances and slots are kept in separate arrays of 16
+/// entries (64 for k > 16), whole SSE registers, sorted, the unused entries at +infinity, so that
+/// an insertion is a few branch-free vector operations; entries past the k-th are not part of the
+/// result (the insertions keep the whole array sorted, so they do not change what the first k
+/// are).
 struct PointKdTree::Search {
+    static constexpr int kSmallBlocks = 4;
+    static constexpr int kLargeBlocks = kMaxNeighbors / 4;
+
     float query[3];
     int k;
-    int blocks;   ///< ceil(k / 4): the 4-entry blocks holding the result
     float bound;  ///< points must be strictly nearer than this until k are found
     int count = 0;
     alignas(16) float distance_sq[kMaxNeighbors];
     alignas(16) std::uint32_t slot[kMaxNeighbors];
 
     Search(const Eigen::Vector3f& q, int k_in, float bound_in)
-        : query{q.x(), q.y(), q.z()}, k(k_in), blocks((k_in + 3) / 4), bound(bound_in) {
-        std::fill(distance_sq, distance_sq + 4 * blocks, std::numeric_limits<float>::infinity());
-        std::fill(slot, slot + 4 * blocks, 0u);
+        : query{q.x(), q.y(), q.z()}, k(k_in), bound(bound_in) {
+        const int entries = 4 * (k <= 4 * kSmallBlocks ? kSmallBlocks : kLargeBlocks);
+        std::fill(distance_sq, distance_sq + entries, std::numeric_limits<float>::infinity());
+        std::fill(slot, slot + entries, 0u);
     }
 
     float worst() const { return count < k ? bound : distance_sq[k - 1]; }
@@ -154,61 +154,59 @@ struct PointKdTree::Search {
     /// KNNResultSet::addPoint for a finite distance: the entry goes after those at equal
     /// distance, and is dropped if it is no nearer than the k-th.
     void add(float d, std::uint32_t s) {
+        if (!(d < worst())) return;
 #if defined(__SSE2__)
-        // Its place: the number of entries at most d (the entries are sorted, the padding is
-        // +infinity; a place past the k-th means it is dropped).
-        const __m128 dv = _mm_set1_ps(d);
-        int place = 0;
-        for (int b = 0; b < blocks; ++b) {
-            place += kBitCount[_mm_movemask_ps(_mm_cmple_ps(_mm_load_ps(distance_sq + 4 * b), dv))];
-        }
-        if (place >= k) return;
-        // Every block: entries after the place move up one (the block's last one into the next
-        // block), the entry at the place becomes the new one.
-        const __m128i place_v = _mm_set1_epi32(place);
-        const __m128i sv = _mm_set1_epi32(static_cast<int>(s));
-        __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
-        __m128i carry_d = _mm_setzero_si128();
-        __m128i carry_s = _mm_setzero_si128();
-        for (int b = 0; b < blocks; ++b) {
-            float* dp = distance_sq + 4 * b;
-            __m128i* sp = reinterpret_cast<__m128i*>(slot + 4 * b);
-            const __m128i old_d = _mm_castps_si128(_mm_load_ps(dp));
-            const __m128i old_s = _mm_load_si128(sp);
-            const __m128i up_d = _mm_or_si128(_mm_slli_si128(old_d, 4), carry_d);
-            const __m128i up_s = _mm_or_si128(_mm_slli_si128(old_s, 4), carry_s);
-            carry_d = _mm_srli_si128(old_d, 12);
-            carry_s = _mm_srli_si128(old_s, 12);
-            const __m128i after = _mm_cmpgt_epi32(lanes, place_v);
-            const __m128i at = _mm_cmpeq_epi32(lanes, place_v);
-            const __m128i keep = _mm_andnot_si128(_mm_or_si128(after, at), _mm_set1_epi32(-1));
-            _mm_store_ps(dp, _mm_castsi128_ps(
-                                 _mm_or_si128(_mm_or_si128(_mm_and_si128(after, up_d),
-                                                           _mm_and_si128(at, _mm_castps_si128(dv))),
-                                              _mm_and_si128(keep, old_d))));
-            _mm_store_si128(
-                sp, _mm_or_si128(_mm_or_si128(_mm_and_si128(after, up_s), _mm_and_si128(at, sv)),
-                                 _mm_and_si128(keep, old_s)));
-            lanes = _mm_add_epi32(lanes, _mm_set1_epi32(4));
+        if (k <= 4 * kSmallBlocks) {
+            insert<kSmallBlocks>(d, s);
+        } else {
+            insert<kLargeBlocks>(d, s);
         }
 #else
         int i = count;
-        for (; i > 0; --i) {
-            if (distance_sq[i - 1] > d) {
-                if (i < k) {
-                    distance_sq[i] = distance_sq[i - 1];
-                    slot[i] = slot[i - 1];
-                }
-            } else {
-                break;
+        for (; i > 0 && distance_sq[i - 1] > d; --i) {
+            if (i < k) {
+                distance_sq[i] = distance_sq[i - 1];
+                slot[i] = slot[i - 1];
             }
         }
-        if (i >= k) return;
         distance_sq[i] = d;
         slot[i] = s;
 #endif
         if (count < k) ++count;
     }
+
+#if defined(__SSE2__)
+    /// Inserts a distance (not negative) nearer than the k-th into kBlocks blocks of four
+    /// entries: its place is after the entries at most d, the entries farther than d move up one
+    /// (a block's last one into the next block). Lane by lane, with `up` the entries moved up
+    /// (lane 0 of the first block +0): the new distance is max(up, min(old, d)), which is old
+    /// before the place, d at it and up after it; the slot is the new one where old > d but not
+    /// up > d (the place), up's where up > d, old's elsewhere.
+    template <int kBlocks>
+    void insert(float d, std::uint32_t s) {
+        const __m128 dv = _mm_set1_ps(d);
+        const __m128i sv = _mm_set1_epi32(static_cast<int>(s));
+        __m128i carry_d = _mm_setzero_si128();
+        __m128i carry_s = _mm_setzero_si128();
+        for (int b = 0; b < kBlocks; ++b) {
+            float* dp = distance_sq + 4 * b;
+            __m128i* sp = reinterpret_cast<__m128i*>(slot + 4 * b);
+            const __m128i old_d = _mm_castps_si128(_mm_load_ps(dp));
+            const __m128i old_s = _mm_load_si128(sp);
+            const __m128 up_d = _mm_castsi128_ps(_mm_or_si128(_mm_slli_si128(old_d, 4), carry_d));
+            const __m128i up_s = _mm_or_si128(_mm_slli_si128(old_s, 4), carry_s);
+            carry_d = _mm_srli_si128(old_d, 12);
+            carry_s = _mm_srli_si128(old_s, 12);
+            const __m128i at_or_after = _mm_castps_si128(_mm_cmpgt_ps(_mm_castsi128_ps(old_d), dv));
+            const __m128i after = _mm_castps_si128(_mm_cmpgt_ps(up_d, dv));
+            _mm_store_ps(dp, _mm_max_ps(up_d, _mm_min_ps(_mm_castsi128_ps(old_d), dv)));
+            const __m128i new_or_old =
+                _mm_or_si128(_mm_and_si128(at_or_after, sv), _mm_andnot_si128(at_or_after, old_s));
+            _mm_store_si128(
+                sp, _mm_or_si128(_mm_and_si128(after, up_s), _mm_andnot_si128(after, new_or_old)));
+        }
+    }
+#endif
 };
 
 PointKdTree::PointKdTree(std::vector<IndexedPoint> points, int leaf_size) : leaf_size_(leaf_size) {
@@ -437,6 +435,9 @@ void PointKdTree::search(Search& s, Pending* stack, const Pending& root) const {
     Pending pending = root;
     for (;;) {
         std::size_t node_index = pending.node;
+        // The k-th distance does not change on the way down to a leaf, and only shrinks after:
+        // a subtree already beyond it would be left out when its turn comes, and is not pushed.
+        const float worst = s.worst();
         for (;;) {
             const Node& node = nodes_[node_index];
             if (node.axis_or_leaf_size & kLeafFlag) {
@@ -459,12 +460,13 @@ void PointKdTree::search(Search& s, Pending* stack, const Pending& root) const {
                 cut_distance_sq = (value - node.div_low) * (value - node.div_low);
             }
             // The nearer child keeps the bound; the other one's is updated along this axis.
-            Pending& next = stack[top++];
+            Pending& next = stack[top];
             next.node = static_cast<std::uint32_t>(other);
             next.min_distance_sq =
                 pending.min_distance_sq + cut_distance_sq - pending.axis_distance_sq[axis];
             next.axis_distance_sq = pending.axis_distance_sq;
             next.axis_distance_sq[axis] = cut_distance_sq;
+            top += next.min_distance_sq <= worst;
             node_index = best;
         }
         do {
@@ -480,16 +482,17 @@ void PointKdTree::scan_leaf(Search& s, std::size_t begin, std::size_t count) con
     const float* y = y_.data() + begin;
     const float* z = z_.data() + begin;
     // nanoflann compares with the worst distance as it was when the leaf was entered, and
-    // addPoint drops what is no longer nearer than the k-th by the time it comes.
-    const float worst = s.worst();
+    // addPoint drops what is no longer nearer than the k-th by the time it comes. Comparing with
+    // the k-th distance as it is by then instead keeps the same points (while fewer than k are
+    // found, both are the bound) and skips the insertions that would drop them.
 #if defined(__SSE2__)
     // Four points at a time, in point_distance_sq's order of operations (the coordinate arrays
     // are padded, so the last group may read past the leaf; those lanes are masked off).
     const __m128 qx = _mm_set1_ps(s.query[0]);
     const __m128 qy = _mm_set1_ps(s.query[1]);
     const __m128 qz = _mm_set1_ps(s.query[2]);
-    const __m128 worst_v = _mm_set1_ps(worst);
     for (std::size_t group = 0; group < count; group += 4) {
+        const __m128 worst_v = _mm_set1_ps(s.worst());
         const __m128 dx = _mm_sub_ps(qx, _mm_loadu_ps(x + group));
         const __m128 dy = _mm_sub_ps(qy, _mm_loadu_ps(y + group));
         const __m128 dz = _mm_sub_ps(qz, _mm_loadu_ps(z + group));
@@ -512,7 +515,7 @@ void PointKdTree::scan_leaf(Search& s, std::size_t begin, std::size_t count) con
         const float dy = s.query[1] - y[i];
         const float dz = s.query[2] - z[i];
         const float distance_sq = (dx * dx + dy * dy) + dz * dz;
-        if (distance_sq < worst) s.add(distance_sq, static_cast<std::uint32_t>(begin + i));
+        if (distance_sq < s.worst()) s.add(distance_sq, static_cast<std::uint32_t>(begin + i));
     }
 #endif
 }

@@ -20,8 +20,11 @@
 //     needed only when all of them lie on one side (the partition has then moved nothing);
 //   - nodes of up to a few thousand points make nanoflann's swaps without its data-dependent
 //     branches: passes that only count list the pairs its scans would swap;
-//   - a leaf's distances and the sorted insertion into the result use SSE2, with the same float
-//     operations in the same order.
+//   - a leaf's distances use SSE2, with the same float operations in the same order, and the
+//     sorted insertion into the result is a few SSE2 minima, maxima and selections;
+//   - a point no nearer than the k-th distance as it is by then is not inserted (nanoflann
+//     compares with the k-th as the leaf was entered, and drops such a point on insertion), and
+//     a subtree already beyond it is not pushed (it would be left out when its turn came).
 // "Bit for bit" assumes the default x86-64 build: with SHINE_NATIVE the compiler may fuse
 // multiply-adds, differently here and in nanoflann.
 #pragma once
