@@ -1,7 +1,9 @@
 // The k-d tree behind the endpoint normals (point_kdtree.hpp) against nanoflann 1.4.2, whose tree
-// and search it reproduces (same neighbours in the same order, equal distances included), and
-// against a brute-force search (same distances); estimate_ray_normals against the nanoflann-based
-// implementation it replaced (bit for bit) and against the same PCA over brute-force neighbours.
+// and search it reproduces (same neighbours in the same order, equal distances included; the same
+// order of the points in the leaves), against a brute-force search (same distances) and against an
+// exhaustive walk that prunes nothing (every point, equal distances in the walk's order: the first
+// k within the radius); estimate_ray_normals against the nanoflann-based implementation it
+// replaced (bit for bit) and against the same PCA over brute-force neighbours.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -270,6 +272,100 @@ std::vector<Eigen::Vector3f> ground_and_wall_sweep(const Eigen::Vector3f& origin
     return endpoints;
 }
 
+/// The reference for the order of equal distances, without any pruning: nanoflann's search with
+/// room for every point visits every leaf (nearer child first) and keeps every point, nearest
+/// first and, at equal distances, in the order the walk met them. Its first k within a radius
+/// are what a search must return. The distances are checked against a brute force.
+std::vector<PointNeighbor> exhaustive_walk(const Trees& trees, const Eigen::Vector3f& query) {
+    const std::size_t n = trees.points.size();
+    std::vector<std::uint32_t> index(n);
+    std::vector<float> distance_sq(n);
+    nanoflann::KNNResultSet<float, std::uint32_t> result(n);
+    result.init(index.data(), distance_sq.data());
+    trees.reference.findNeighbors(result, query.data(), nanoflann::SearchParams());
+    EXPECT_EQ(result.size(), n);
+    std::vector<float> brute_force;
+    for (const Eigen::Vector3f& p : trees.points)
+        brute_force.push_back(point_distance_sq(query, p));
+    std::sort(brute_force.begin(), brute_force.end());
+    EXPECT_EQ(distance_sq, brute_force);
+    std::vector<PointNeighbor> walk;
+    for (std::size_t i = 0; i < n; ++i) {
+        walk.push_back({distance_sq[i], index[i], trees.points[index[i]]});
+    }
+    return walk;
+}
+
+/// What compare_with_exhaustive_walk covered.
+struct WalkComparison {
+    int different = 0;     ///< searches whose neighbours (index, distance, order) differ
+    int tied = 0;          ///< searches with distinct points at equal distance among the neighbours
+    int cut_in_a_tie = 0;  ///< searches whose k-th neighbour ties with a point left out
+    int fewer_than_k = 0;  ///< searches with fewer than k points within the radius
+};
+
+/// PointKdTree::nearest for every query, k and radius against the first k of the exhaustive walk
+/// within the radius.
+WalkComparison compare_with_exhaustive_walk(const Trees& trees,
+                                            const std::vector<Eigen::Vector3f>& queries,
+                                            const std::vector<int>& ks,
+                                            const std::vector<float>& radii_m) {
+    WalkComparison c;
+    PointNeighbor found[kMaxNeighbors];
+    for (const Eigen::Vector3f& q : queries) {
+        const std::vector<PointNeighbor> walk = exhaustive_walk(trees, q);
+        for (const int k : ks) {
+            for (const float radius_m : radii_m) {
+                const float max_distance_sq = radius_m * radius_m;
+                const int n = trees.tree.nearest(q, k, max_distance_sq, found);
+                int within = 0;
+                while (within < static_cast<int>(walk.size()) &&
+                       walk[static_cast<std::size_t>(within)].distance_sq <= max_distance_sq) {
+                    ++within;
+                }
+                const int kept = std::min(within, k);
+                bool same = n == kept;
+                for (int i = 0; same && i < n; ++i) {
+                    const PointNeighbor& expected = walk[static_cast<std::size_t>(i)];
+                    same = found[i].index == expected.index &&
+                           found[i].distance_sq == expected.distance_sq;
+                }
+                c.different += !same;
+                if (!same) {
+                    ADD_FAILURE() << "query " << q.transpose() << ", k " << k << ", radius "
+                                  << radius_m;
+                }
+                for (int i = 1; i < kept; ++i) {
+                    const PointNeighbor& a = walk[static_cast<std::size_t>(i - 1)];
+                    const PointNeighbor& b = walk[static_cast<std::size_t>(i)];
+                    if (a.distance_sq == b.distance_sq && a.position != b.position) {
+                        ++c.tied;
+                        break;
+                    }
+                }
+                c.cut_in_a_tie +=
+                    within > k && walk[static_cast<std::size_t>(k)].distance_sq ==
+                                      walk[static_cast<std::size_t>(k - 1)].distance_sq;
+                c.fewer_than_k += within < k;
+            }
+        }
+    }
+    return c;
+}
+
+/// Three sweeps over ground and a wall from sensors 1 m apart (about 19 000 endpoints in scan
+/// order, so the tree's large nodes hold long runs on one side of their cut), and a copy of every
+/// 50th endpoint at its end (points at equal positions).
+std::vector<Eigen::Vector3f> three_sweeps_with_copies() {
+    std::vector<Eigen::Vector3f> points;
+    for (int s = 0; s < 3; ++s) {
+        const Eigen::Vector3f origin(-1.0f * s, 0.3f * s, 1.7f);
+        for (const Eigen::Vector3f& p : ground_and_wall_sweep(origin)) points.push_back(p);
+    }
+    const std::size_t swept = points.size();
+    for (std::size_t i = 0; i < swept; i += 50) points.push_back(points[i]);
+    return points;
+}
 }  // namespace
 
 TEST(PointKdTree, EqualsNanoflannAndBruteForceOnRandomPoints) {
@@ -327,6 +423,64 @@ TEST(PointKdTree, EqualsNanoflannWithTiesAndTheRadiusBound) {
     EXPECT_EQ(found[0].distance_sq, 0.0f);
     EXPECT_EQ(found[0].position, grid_point);
     EXPECT_EQ(found[2].distance_sq, 0.125f * 0.125f);
+}
+
+TEST(PointKdTree, NeighboursAreTheFirstKOfTheExhaustiveWalk) {
+    // The grid: equal distances everywhere, the radii fall exactly on grid distances; queries on
+    // grid points, between four of them, and far from every point (nothing within the radius).
+    const std::vector<Eigen::Vector3f> grid = plane_and_line();
+    std::vector<Eigen::Vector3f> grid_queries;
+    for (std::size_t i = 0; i < grid.size(); i += 11) grid_queries.push_back(grid[i]);
+    grid_queries.emplace_back(0.0625f, 0.0625f, 0.0f);
+    grid_queries.emplace_back(0.0f, 1.0f, 0.375f);
+    grid_queries.emplace_back(40.0f, 0.0f, 0.0f);
+    WalkComparison grid_total;
+    for (int leaf_size : {4, 16}) {
+        const WalkComparison c =
+            compare_with_exhaustive_walk(Trees(grid, leaf_size), grid_queries,
+                                         {1, 5, 16, 17, kMaxNeighbors}, {0.125f, 0.25f, 1.0f});
+        EXPECT_EQ(c.different, 0) << "leaf size " << leaf_size;
+        grid_total.tied += c.tied;
+        grid_total.cut_in_a_tie += c.cut_in_a_tie;
+        grid_total.fewer_than_k += c.fewer_than_k;
+    }
+    // Measured: 5456 of the 6870 searches with distinct points at equal distance among their
+    // neighbours, 1360 cut in a tie, 2814 with fewer than k points within the radius.
+    EXPECT_GT(grid_total.tied, 2500);
+    EXPECT_GT(grid_total.cut_in_a_tie, 650);
+    EXPECT_GT(grid_total.fewer_than_k, 1400);
+
+    // The sweeps, with copies: nodes of every size, equal distances at equal positions.
+    const std::vector<Eigen::Vector3f> sweeps = three_sweeps_with_copies();
+    std::vector<Eigen::Vector3f> sweep_queries;
+    for (std::size_t i = 0; i < sweeps.size(); i += 97) sweep_queries.push_back(sweeps[i]);
+    const WalkComparison c = compare_with_exhaustive_walk(
+        Trees(sweeps, PointKdTree::kDefaultLeafSize), sweep_queries, {5, 16, 17}, {0.3f, 1.0f});
+    EXPECT_EQ(c.different, 0);
+    EXPECT_GT(c.cut_in_a_tie, 5);  // a copy and its original at the k-th distance (measured: 15)
+}
+
+TEST(PointKdTree, LeafOrderIsNanoflannsOnLargeSets) {
+    // The order of the points in the leaves (which decides the order of equal distances) against
+    // nanoflann's index array, on sets whose nodes take both of the build's partitions (small
+    // nodes by counting passes, large ones by nanoflann's scans): the sweeps with copies, and a
+    // large grid, whose coordinates often fall on the cuts.
+    std::vector<Eigen::Vector3f> large_grid;
+    for (int i = -60; i <= 60; ++i) {
+        for (int j = -60; j <= 60; ++j) large_grid.emplace_back(0.125f * i, 0.125f * j, 0.0f);
+    }
+    for (int i = -100; i <= 100; ++i) large_grid.emplace_back(0.0625f * i, 1.0f, 0.75f);
+    for (const std::vector<Eigen::Vector3f>& points : {three_sweeps_with_copies(), large_grid}) {
+        for (int leaf_size : {1, 4, 16, 64}) {
+            const Trees trees(points, leaf_size);
+            ASSERT_EQ(trees.tree.size(), trees.reference.vAcc.size());
+            int different = 0;
+            for (std::size_t slot = 0; slot < trees.tree.size(); ++slot) {
+                different += trees.tree.index_at(slot) != trees.reference.vAcc[slot];
+            }
+            EXPECT_EQ(different, 0) << points.size() << " points, leaf size " << leaf_size;
+        }
+    }
 }
 
 TEST(PointKdTree, DuplicatesAndNonFinitePointsAsNanoflann) {
