@@ -107,8 +107,24 @@ void ReferencePlanes::build_tree() {
         PointKdTree(point_to_plane_icp_internal::indexed_relative(points_world_, origin_world_));
 }
 
+void ReferencePlanes::add_voxel_lookup(double voxel_m, double radius_m) {
+    VoxelNearestLookup lookup(points_world_, voxel_m, radius_m);
+    auto at = lookups_.begin();
+    while (at != lookups_.end() && at->radius_m() <= radius_m) ++at;
+    lookups_.insert(at, std::move(lookup));
+}
+
 long ReferencePlanes::nearest(const Eigen::Vector3d& query_world, double max_distance_m,
                               long hint) const {
+    for (const VoxelNearestLookup& lookup : lookups_) {
+        if (lookup.radius_m() < max_distance_m) continue;
+        const long j = lookup.find(query_world);
+        if (j < 0 ||
+            (points_world_[j] - query_world).squaredNorm() > max_distance_m * max_distance_m) {
+            return -1;
+        }
+        return j;
+    }
     PointNeighbor found[1];
     const Eigen::Vector3f q = (query_world - origin_world_).cast<float>();
     float max_sq = static_cast<float>(max_distance_m * max_distance_m);

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "shine/odometry/registration_solver.hpp"
+#include "shine/odometry/voxel_nearest_lookup.hpp"
 #include "shine/sampling/point_kdtree.hpp"
 
 namespace shine {
@@ -55,10 +56,17 @@ class ReferencePlanes {
     const std::vector<Eigen::Vector3d>& points_world() const { return points_world_; }
     const std::vector<Eigen::Vector3d>& normals_world() const { return normals_world_; }
 
+    /// From now on, searches within up to `radius_m` are answered by a VoxelNearestLookup of
+    /// `voxel_m` voxels (the point nearest to the centre of the query's voxel, if within the
+    /// search's distance of the query) instead of the k-d tree: one hash look-up a search, for
+    /// references searched often from far (localisation's recovery). Of several lookups the one
+    /// of the smallest radius that covers the search answers. Throws ConfigError as the lookup.
+    void add_voxel_lookup(double voxel_m, double radius_m);
+
     /// Index (into points_world()) of the nearest matchable point within max_distance_m of
     /// `query_world`, or -1. A `hint` (an index, or -1 for none), e.g. the point's match at an
     /// earlier pose, only bounds the search: the answer is the same, found faster when the hint
-    /// is near.
+    /// is near. With a voxel lookup covering max_distance_m, its answer instead (hint unused).
     long nearest(const Eigen::Vector3d& query_world, double max_distance_m, long hint = -1) const;
     /// ICP's residual at `point_world`: the index of its match (nearest(), -1 for none) and,
     /// for a match, r_m = n . (point - q), the signed distance to the match's tangent plane.
@@ -72,6 +80,7 @@ class ReferencePlanes {
     std::vector<Eigen::Vector3d> points_world_;
     std::vector<Eigen::Vector3d> normals_world_;
     PointKdTree tree_;
+    std::vector<VoxelNearestLookup> lookups_;  ///< by increasing radius
 };
 
 /// The match (an index into ReferencePlanes::points_world(), -1 for none) of each of a set of scan
