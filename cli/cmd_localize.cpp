@@ -56,13 +56,9 @@ Eigen::Isometry3d first_pose_of(const std::string& path) {
 }
 
 nlohmann::json stage_json(const LocalizeStageSeconds& s) {
-    return {{"selection", s.selection},
-            {"tracking", s.tracking},
-            {"recovery", s.recovery},
-            {"search", s.search},
-            {"sdf_queries", s.sdf_queries},
-            {"acceptance", s.acceptance},
-            {"icp", s.icp}};
+    return {{"selection", s.selection},   {"starts", s.starts}, {"tracking", s.tracking},
+            {"recovery", s.recovery},     {"search", s.search}, {"sdf_queries", s.sdf_queries},
+            {"acceptance", s.acceptance}, {"icp", s.icp}};
 }
 
 /// Per stage, the median over the scans in milliseconds: over all scans, over the tracked ones
@@ -72,22 +68,23 @@ nlohmann::json stage_medians_ms(const std::vector<LocalizeRecord>& records,
     nlohmann::json out;
     const char* groups[] = {"all", "tracked", "not_tracked"};
     for (int g = 0; g < 3; ++g) {
-        std::vector<std::vector<double>> values(9);
+        std::vector<std::vector<double>> values(10);
         for (std::size_t i = 0; i < records.size(); ++i) {
             const LocalizeRecord& r = records[i];
             const bool tracked = r.source == LocalizeSource::kTracked;
             if ((g == 1 && !tracked) || (g == 2 && tracked)) continue;
             const LocalizeStageSeconds& s = r.stage_seconds;
-            const double v[9] = {load_seconds[i], s.selection,  s.tracking, s.recovery, s.search,
-                                 s.sdf_queries,   s.acceptance, s.icp,      r.seconds};
-            for (int k = 0; k < 9; ++k) values[k].push_back(1000.0 * v[k]);
+            const double v[10] = {load_seconds[i], s.selection, s.starts,      s.tracking,
+                                  s.recovery,      s.search,    s.sdf_queries, s.acceptance,
+                                  s.icp,           r.seconds};
+            for (int k = 0; k < 10; ++k) values[k].push_back(1000.0 * v[k]);
         }
         if (values[0].empty()) continue;
-        const char* names[] = {"load",        "selection",  "tracking", "recovery", "search",
-                               "sdf_queries", "acceptance", "icp",      "total"};
+        const char* names[] = {"load",   "selection",   "starts",     "tracking", "recovery",
+                               "search", "sdf_queries", "acceptance", "icp",      "total"};
         nlohmann::json group;
         group["scans"] = values[0].size();
-        for (int k = 0; k < 9; ++k) group[names[k]] = median(values[k]);
+        for (int k = 0; k < 10; ++k) group[names[k]] = median(values[k]);
         out[groups[g]] = group;
     }
     return out;
@@ -208,6 +205,10 @@ int run_localize(const LocalizeOptions& opt) {
                             {"status", to_string(r.status)},
                             {"iterations", r.iterations},
                             {"candidates", r.candidates},
+                            {"start_motion_scale", r.start_motion_scale},
+                            {"start_yaw_deg", r.start_yaw_deg},
+                            {"start_score", r.start_score},
+                            {"prediction_score", r.prediction_score},
                             {"seconds", r.seconds},
                             {"load_seconds", load_seconds[i]},
                             {"stage_seconds", stage_json(r.stage_seconds)}});
@@ -326,6 +327,33 @@ const RegisterCommand kLocalizeCommand(17, [](CLI::App& app, Action& action) {
     cmd->add_option("--kernel-scales-m", opt->config.kernel_scales_m,
                     "Geman-McClure scales of the coarse-to-fine registration stages, m")
         ->delimiter(',')
+        ->capture_default_str();
+    cmd->add_option("--start-yaw-range-deg", opt->config.start_yaw_range_deg,
+                    "tracking's starts are the prediction turned about the vertical up to this "
+                    "far each way (0: not turned), degrees")
+        ->capture_default_str();
+    cmd->add_option("--start-yaw-step-deg", opt->config.start_yaw_step_deg,
+                    "in steps of this, degrees")
+        ->capture_default_str();
+    cmd->add_option("--prediction-good-score", opt->config.prediction_good_score,
+                    "a prediction scoring at least this is tracked without trying other starts "
+                    "(1: always try them)")
+        ->capture_default_str();
+    cmd->add_option("--track-min-start-score", opt->config.track_min_start_score,
+                    "a best start scoring below this (its share of points near the surface, "
+                    "weighted) goes straight to the recovery by ICP")
+        ->capture_default_str();
+    cmd->add_option("--start-motion-scales", opt->config.start_motion_scales,
+                    "and the last motion scaled by each of these (1: constant velocity, 0: the "
+                    "last pose)")
+        ->delimiter(',')
+        ->capture_default_str();
+    cmd->add_option("--icp-lookup-voxel-m", opt->config.icp_lookup_voxel_m,
+                    "the recovery's ICP finds the map surface's nearest points by voxels of this "
+                    "size (0: a k-d tree search, exact and slower), m")
+        ->capture_default_str();
+    cmd->add_option("--icp-coarse-lookup-voxel-m", opt->config.icp_coarse_lookup_voxel_m,
+                    "and in its coarse stage by voxels of this size (0: the k-d tree), m")
         ->capture_default_str();
     cmd->add_option("--search-spacing-m", opt->config.search_spacing_m,
                     "grid spacing of a search's horizontal offsets, m")

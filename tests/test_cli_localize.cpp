@@ -1,14 +1,18 @@
 // `shine localize MAP DATA -o OUT` on a simulated street: a map of the even scans, the odd scans
 // localised in it from the first one's pose or by the search around the map's trajectory; the
 // map file untouched; poses written in the frame of the poses the map started from and in the
-// map's own; a start beyond the search's reach reported, not accepted; bad input named.
+// map's own; scans at uneven intervals and a turned start tracked from scored starts; a start
+// beyond the search's reach reported, not accepted; bad input named.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "cli_test_support.hpp"
 #include "shine/io/kitti.hpp"
@@ -220,6 +224,94 @@ TEST(LocalizeCli, AScanOfNoiseIsBridgedAndTrackingResumesAfterIt) {
     EXPECT_FALSE(scans[2].at("localized").get<bool>());
     EXPECT_EQ(scans[2].at("source"), "prediction");
     for (const int i : {0, 1, 3, 4, 5}) EXPECT_TRUE(scans[i].at("localized").get<bool>()) << i;
+}
+
+TEST(LocalizeCli, ScansAtUnevenIntervalsAndATurnedStartAreTrackedFromScoredStarts) {
+    // Scans 1, 2, 4 and 5 of the street (1 m apart): the constant-velocity prediction of scan 4
+    // lands 1 m short and that of scan 5 1 m beyond, outside the SDF's basin; the starts with
+    // the last motion doubled and halved score best and are tracked. Without those starts the
+    // two scans need the ICP recovery.
+    const fs::path uneven = test_dir() / "uneven_street";
+    fs::remove_all(uneven);
+    fs::create_directories(uneven / "velodyne");
+    std::vector<std::string> pose_lines;
+    {
+        std::istringstream lines(read_text(street() / "poses.txt"));
+        for (std::string line; std::getline(lines, line);) pose_lines.push_back(line);
+    }
+    {
+        std::ofstream poses(uneven / "poses.txt");
+        int k = 0;
+        for (const int scan : {1, 2, 4, 5}) {
+            char from[16], to[16];
+            std::snprintf(from, sizeof(from), "%06d.bin", scan);
+            std::snprintf(to, sizeof(to), "%06d.bin", k++);
+            fs::copy_file(street() / "velodyne" / from, uneven / "velodyne" / to);
+            poses << pose_lines.at(scan) << "\n";
+        }
+    }
+    const auto localize_uneven = [&](const std::string& name, const std::string& extra) {
+        const fs::path out = test_dir() / name;
+        fs::remove_all(out);
+        const CliResult r = run("localize '" + map_dir().string() + "' '" + uneven.string() +
+                                "' -o '" + out.string() + "' --threads 2 --initial-pose '" +
+                                pose_file(1, "uneven_first.txt").string() + "' " + extra);
+        EXPECT_EQ(r.exit_code, 0) << r.output;
+        return read_json(out / "stats.json");
+    };
+    // Measured on this map: the predictions of scans 4 and 5 score 0.48 and 0.44, the doubled
+    // and halved motions 0.66 and 0.75; 1.6 mm median error.
+    const nlohmann::json scored = localize_uneven("uneven", "");
+    const nlohmann::json& scans = scored.at("localize").at("per_scan");
+    ASSERT_EQ(scans.size(), 4u);
+    EXPECT_EQ(scored.at("localize").at("localized"), 4);
+    EXPECT_EQ(scans[2].at("source"), "tracked");
+    EXPECT_EQ(scans[3].at("source"), "tracked");
+    EXPECT_EQ(scans[2].at("start_motion_scale").get<double>(), 2.0);
+    EXPECT_EQ(scans[3].at("start_motion_scale").get<double>(), 0.5);
+    for (const int i : {2, 3}) {
+        EXPECT_GT(scans[i].at("start_score").get<double>(),
+                  scans[i].at("prediction_score").get<double>() + 0.1)
+            << i;
+    }
+    EXPECT_LT(scored.at("against_data_poses").at("max_translation_m").get<double>(), 0.02);
+    const nlohmann::json plain = localize_uneven("uneven_plain", "--start-motion-scales 1");
+    EXPECT_EQ(plain.at("localize").at("per_scan")[2].at("source"), "recovered");
+    EXPECT_EQ(plain.at("localize").at("per_scan")[2].at("start_motion_scale").get<double>(), 1.0);
+    EXPECT_EQ(plain.at("localize").at("localized"), 4);
+
+    // The first scan from its pose turned 6 degrees about the vertical: the start turned back by
+    // 5 degrees scores best (measured 0.57 against 0.39 for the pose as given; this short-trained
+    // map's SDF basin is under a degree wide, so the scan is then found by the recovery or the
+    // search).
+    std::istringstream fields(pose_lines.at(1));
+    Eigen::Matrix<double, 3, 4> m;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 4; ++c) fields >> m(r, c);
+    }
+    m.leftCols<3>() =
+        Eigen::AngleAxisd(6.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+        m.leftCols<3>();
+    const fs::path turned = test_dir() / "turned_first.txt";
+    {
+        std::ofstream file(turned);
+        file.precision(17);
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 4; ++c) file << m(r, c) << (r == 2 && c == 3 ? "\n" : " ");
+        }
+    }
+    const fs::path out = test_dir() / "turned";
+    fs::remove_all(out);
+    const CliResult r = run(
+        localize_odd(map_dir(), out, "--last-frame 1 --initial-pose '" + turned.string() + "'"));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json stats = read_json(out / "stats.json");
+    const nlohmann::json& first = stats.at("localize").at("per_scan").at(0);
+    EXPECT_TRUE(first.at("localized").get<bool>());
+    EXPECT_EQ(first.at("start_yaw_deg").get<double>(), -5.0);
+    EXPECT_GT(first.at("start_score").get<double>(),
+              first.at("prediction_score").get<double>() + 0.1);
+    EXPECT_LT(stats.at("against_data_poses").at("max_translation_m").get<double>(), 0.02);
 }
 
 TEST(LocalizeCli, BadInputGetsAClearError) {

@@ -32,6 +32,17 @@ TEST(LocalizeConfig, EachBadSettingIsNamedUnderLocalize) {
         {"max_points", [](shine::LocalizeConfig& c) { c.max_points = -1; }},
         {"inlier_distance_m", [](shine::LocalizeConfig& c) { c.inlier_distance_m = 0.0; }},
         {"min_inlier_ratio", [](shine::LocalizeConfig& c) { c.min_inlier_ratio = 1.5; }},
+        {"start_motion_scales",
+         [](shine::LocalizeConfig& c) {
+             c.start_motion_scales = {1.0, -0.5};
+         }},
+        {"start_yaw_range_deg", [](shine::LocalizeConfig& c) { c.start_yaw_range_deg = 120.0; }},
+        {"start_yaw_step_deg", [](shine::LocalizeConfig& c) { c.start_yaw_step_deg = 0.0; }},
+        {"prediction_good_score", [](shine::LocalizeConfig& c) { c.prediction_good_score = 1.5; }},
+        {"track_min_start_score", [](shine::LocalizeConfig& c) { c.track_min_start_score = -0.1; }},
+        {"icp_lookup_voxel_m", [](shine::LocalizeConfig& c) { c.icp_lookup_voxel_m = -0.25; }},
+        {"icp_coarse_lookup_voxel_m",
+         [](shine::LocalizeConfig& c) { c.icp_coarse_lookup_voxel_m = 0.001; }},
     };
     for (const BadSetting& setting : bad) {
         shine::LocalizeConfig config;

@@ -282,6 +282,10 @@ class NeuralMap {
         info["status"] = to_string(record.status);
         info["iterations"] = record.iterations;
         info["candidates"] = record.candidates;
+        info["prediction_score"] = record.prediction_score;
+        info["start_score"] = record.start_score;
+        info["start_motion_scale"] = record.start_motion_scale;
+        info["start_yaw_deg"] = record.start_yaw_deg;
         info["seconds"] = record.seconds;
         return py::make_tuple(pose_to_array(record.T_world_sensor), info);
     }

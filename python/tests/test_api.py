@@ -233,6 +233,11 @@ def test_localize_in_a_saved_map(shine_cli, tmp_path):
         # Measured: 0.1-0.3 cm from the simulated truth.
         assert np.linalg.norm(pose[:3, 3] - true_pose[:3, 3]) < 0.02, (i, info)
         assert info["inlier_ratio"] > 0.8 and info["seconds"] > 0
+        # The start tracking began from: the first scan from its true pose scores it highest.
+        assert 0.0 <= info["prediction_score"] <= info["start_score"] <= 1.0, info
+        assert info["start_motion_scale"] in (0.0, 0.5, 1.0, 2.0), info
+        if i == 0:
+            assert info["start_yaw_deg"] == 0.0 and info["start_motion_scale"] == 1.0, info
     np.testing.assert_array_equal(loaded.sdf(probe)[0], before)
     with pytest.raises(ValueError):
         loaded.localize(odd[0][0], initial_pose=np.eye(3))

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <numeric>
@@ -42,6 +43,18 @@ Eigen::Isometry3d turned(const Eigen::Isometry3d& pose, double yaw_rad,
     out.linear() =
         Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * pose.linear();
     out.translation() += offset_world;
+    return out;
+}
+
+/// The rigid motion `motion` scaled by `scale`: its rotation angle (same axis) and translation
+/// times `scale`; exactly `motion` for 1 and the identity for 0.
+Eigen::Isometry3d scaled_motion(const Eigen::Isometry3d& motion, double scale) {
+    if (scale == 1.0) return motion;
+    Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+    if (scale == 0.0) return out;
+    const Eigen::AngleAxisd rotation(motion.linear());
+    out.linear() = Eigen::AngleAxisd(scale * rotation.angle(), rotation.axis()).toRotationMatrix();
+    out.translation() = scale * motion.translation();
     return out;
 }
 
@@ -128,6 +141,28 @@ void validate(const LocalizeConfig& c) {
     require_localize(c.min_range_m >= 0.0 && c.max_range_m > c.min_range_m, "max_range_m",
                      "must exceed min_range_m (>= 0)");
     require_localize(!c.kernel_scales_m.empty(), "kernel_scales_m", "needs at least one scale");
+    for (double s : c.start_motion_scales) {
+        require_localize(std::isfinite(s) && s >= 0.0 && s <= 4.0, "start_motion_scales",
+                         "must be within [0, 4]");
+    }
+    require_localize(c.start_yaw_range_deg >= 0.0 && c.start_yaw_range_deg <= 90.0,
+                     "start_yaw_range_deg", "must be within [0, 90]");
+    require_localize(c.start_yaw_step_deg > 0.0, "start_yaw_step_deg", "must be positive");
+    require_localize(c.track_min_start_score >= 0.0 && c.track_min_start_score <= 1.0,
+                     "track_min_start_score", "must be within [0, 1]");
+    require_localize(c.prediction_good_score >= 0.0 && c.prediction_good_score <= 1.0,
+                     "prediction_good_score", "must be within [0, 1]");
+    const auto lookup_voxel_ok = [](double voxel_m, double radius_m) {
+        return voxel_m == 0.0 ||
+               (voxel_m > 0.0 && voxel_m <= radius_m && radius_m <= 1000.0 * voxel_m);
+    };
+    require_localize(
+        lookup_voxel_ok(c.icp_lookup_voxel_m, c.icp_correspondence_m), "icp_lookup_voxel_m",
+        "must be 0 (none) or from icp_correspondence_m / 1000 to icp_correspondence_m");
+    require_localize(lookup_voxel_ok(c.icp_coarse_lookup_voxel_m, c.icp_coarse_correspondence_m),
+                     "icp_coarse_lookup_voxel_m",
+                     "must be 0 (none) or from icp_coarse_correspondence_m / 1000 to "
+                     "icp_coarse_correspondence_m");
     for (double s : c.kernel_scales_m) {
         require_localize(s > 0.0, "kernel_scales_m", "must be positive");
     }
@@ -218,11 +253,21 @@ MapLocalizer::MapLocalizer(const NeuralSdf& sdf, const LocalizeConfig& config,
         throw DataError("the map has no surface to localise against (its SDF never crosses zero)");
     }
     surface_ = std::make_unique<ReferencePlanes>(points, unit_normals);
+    // Step 4's voxel lookups, built with the map rather than at the first recovery, which would
+    // otherwise stall for them (1.5 s on one thread on the real walk's map).
+    if (config_.icp_lookup_voxel_m > 0.0) {
+        surface_->add_voxel_lookup(config_.icp_lookup_voxel_m, config_.icp_correspondence_m);
+    }
+    if (config_.icp_coarse_lookup_voxel_m > 0.0) {
+        surface_->add_voxel_lookup(config_.icp_coarse_lookup_voxel_m,
+                                   config_.icp_coarse_correspondence_m);
+    }
 }
 
 MapLocalizer::~MapLocalizer() = default;
 
 MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& points,
+                                            const std::vector<Eigen::Vector3f>& track_points,
                                             const Eigen::Isometry3d& start,
                                             const Eigen::Isometry3d* headings_from) const {
     PointToPlaneIcpConfig icp;
@@ -298,7 +343,7 @@ MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& 
             if (best_ratio >= config_.icp_min_inlier_ratio) break;
         }
     }
-    Attempt attempt = track(points, best);
+    Attempt attempt = track(track_points, best);
     attempt.iterations += iterations;
     return attempt;
 }
@@ -401,7 +446,33 @@ MapLocalizer::Attempt MapLocalizer::track(const std::vector<Eigen::Vector3f>& po
     return attempt;
 }
 
+std::vector<double> MapLocalizer::surface_scores(
+    const std::vector<Eigen::Vector3f>& sample,
+    const std::vector<Eigen::Isometry3d>& candidates) const {
+    const std::size_t n = sample.size();
+    std::vector<Eigen::Vector3f> points_map(candidates.size() * n);
+    tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t c) {
+        const std::vector<Eigen::Vector3f> moved =
+            points_in_map_frame(sample, map_from_sensor(candidates[c], sdf_.origin_world_m));
+        std::copy(moved.begin(), moved.end(), points_map.begin() + c * n);
+    });
+    std::vector<float> sdf_m;
+    std::vector<std::uint8_t> inside;
+    sdf_.query(points_map, QueryMask::kLevel0, sdf_m, inside);
+    const double band = 2.0 * config_.inlier_distance_m;
+    std::vector<double> scores(candidates.size(), 0.0);
+    for (std::size_t c = 0; c < candidates.size(); ++c) {
+        double s = 0.0;
+        for (std::size_t i = 0; i < n; ++i) {
+            if (inside[c * n + i]) s += std::max(0.0, 1.0 - std::abs(sdf_m[c * n + i]) / band);
+        }
+        scores[c] = n == 0 ? 0.0 : s / n;
+    }
+    return scores;
+}
+
 MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& points,
+                                           const std::vector<Eigen::Vector3f>& track_points,
                                            const std::vector<Eigen::Isometry3d>& centres,
                                            double radius_m) const {
     // The candidates: each centre moved on a horizontal grid within search_radius_m, turned to
@@ -426,26 +497,8 @@ MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& p
         }
     }
     // Score: the mean over a few hundred points of max(0, 1 - |SDF| / 2 d) inside the map.
-    const std::vector<Eigen::Vector3f> sample = thinned(points, config_.search_points);
-    const std::size_t n = sample.size();
-    std::vector<Eigen::Vector3f> points_map(candidates.size() * n);
-    tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t c) {
-        const std::vector<Eigen::Vector3f> moved =
-            points_in_map_frame(sample, map_from_sensor(candidates[c], sdf_.origin_world_m));
-        std::copy(moved.begin(), moved.end(), points_map.begin() + c * n);
-    });
-    std::vector<float> sdf_m;
-    std::vector<std::uint8_t> inside;
-    sdf_.query(points_map, QueryMask::kLevel0, sdf_m, inside);
-    const double band = 2.0 * config_.inlier_distance_m;
-    std::vector<double> scores(candidates.size(), 0.0);
-    for (std::size_t c = 0; c < candidates.size(); ++c) {
-        double s = 0.0;
-        for (std::size_t i = 0; i < n; ++i) {
-            if (inside[c * n + i]) s += std::max(0.0, 1.0 - std::abs(sdf_m[c * n + i]) / band);
-        }
-        scores[c] = n == 0 ? 0.0 : s / n;
-    }
+    const std::vector<double> scores =
+        surface_scores(thinned(points, config_.search_points), candidates);
     std::vector<std::size_t> order(candidates.size());
     std::iota(order.begin(), order.end(), std::size_t{0});
     const std::size_t best =
@@ -459,7 +512,7 @@ MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& p
     int iterations = 0;
     bool any = false;
     for (std::size_t k = 0; k < best; ++k) {
-        const Attempt attempt = recover(points, candidates[order[k]], nullptr);
+        const Attempt attempt = recover(points, track_points, candidates[order[k]], nullptr);
         iterations += attempt.iterations;
         // A localised attempt beats one that is not; among equals, more points on the surface.
         if (!any || (attempt.localized && !chosen.localized) ||
@@ -499,7 +552,7 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
         const Clock::time_point search_start = Clock::now();
         Attempt found;
         if (!places_.empty()) {
-            found = search(wide, places_, config_.search_radius_m);
+            found = search(wide, points, places_, config_.search_radius_m);
             stage_seconds_.search += seconds_since(search_start);
             return found;
         }
@@ -512,8 +565,8 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
             }
             break;
         }
-        found =
-            search(wide, centres, std::max(config_.search_radius_m, config_.lost_search_radius_m));
+        found = search(wide, points, centres,
+                       std::max(config_.search_radius_m, config_.lost_search_radius_m));
         stage_seconds_.search += seconds_since(search_start);
         return found;
     };
@@ -526,17 +579,76 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
         source = LocalizeSource::kGlobalSearch;
         record.points = wide.size();
     } else {
+        // Step 2's starts around the prediction, scored; the best is tracked first.
+        const Clock::time_point starts_start = Clock::now();
+        std::vector<Eigen::Isometry3d> starts;
+        std::vector<std::array<double, 2>> start_labels;  // motion scale, yaw (degrees)
+        const Eigen::Isometry3d last =
+            records_.empty() ? predicted : records_.back().T_world_sensor;
+        const Eigen::Isometry3d motion =
+            records_.size() >= 2 ? records_[records_.size() - 2].T_world_sensor.inverse() * last
+                                 : Eigen::Isometry3d::Identity();
+        const int yaw_steps = static_cast<int>(
+            std::floor(config_.start_yaw_range_deg / config_.start_yaw_step_deg + 1e-9));
+        std::vector<double> scales = {1.0};
+        if (records_.size() >= 2) {
+            for (const double scale : config_.start_motion_scales) {
+                if (std::find(scales.begin(), scales.end(), scale) == scales.end()) {
+                    scales.push_back(scale);
+                }
+            }
+        }
+        for (const double scale : scales) {
+            const Eigen::Isometry3d from =
+                scale == 1.0 ? predicted : Eigen::Isometry3d(last * scaled_motion(motion, scale));
+            for (int k = 0; k <= 2 * yaw_steps; ++k) {
+                const int h = (k % 2 == 0 ? 1 : -1) * ((k + 1) / 2);  // 0, -1, +1, -2, ...
+                const double yaw_deg = h * config_.start_yaw_step_deg;
+                starts.push_back(
+                    h == 0 ? from : turned(from, yaw_deg * M_PI / 180.0, Eigen::Vector3d::Zero()));
+                start_labels.push_back({scale, yaw_deg});
+            }
+        }
+        // The prediction first: one that scores well is tracked without scoring the others.
+        std::size_t best_start = 0;
+        const std::vector<Eigen::Vector3f> sample = thinned(points, config_.search_points);
+        record.prediction_score = surface_scores(sample, {predicted}).front();
+        record.start_score = record.prediction_score;
+        if (starts.size() > 1 && record.prediction_score < config_.prediction_good_score) {
+            const std::vector<Eigen::Isometry3d> others(starts.begin() + 1, starts.end());
+            const std::vector<double> scores = surface_scores(sample, others);
+            // The first of the best; the prediction wins a tie.
+            const std::size_t best_other = static_cast<std::size_t>(
+                std::max_element(scores.begin(), scores.end()) - scores.begin());
+            if (scores[best_other] > record.prediction_score) {
+                best_start = best_other + 1;
+                record.start_score = scores[best_other];
+            }
+        }
+        record.start_motion_scale = start_labels[best_start][0];
+        record.start_yaw_deg = start_labels[best_start][1];
+        stage_seconds_.starts = seconds_since(starts_start);
         const Clock::time_point tracking_start = Clock::now();
-        attempt = track(points, predicted);
+        const bool try_tracking = record.start_score >= config_.track_min_start_score;
+        if (try_tracking) attempt = track(points, starts[best_start]);
+        if (try_tracking && !attempt.localized && best_start != 0) {
+            iterations += attempt.iterations;
+            attempt = track(points, predicted);
+            if (attempt.localized) {
+                record.start_motion_scale = 1.0;
+                record.start_yaw_deg = 0.0;
+            }
+        }
         stage_seconds_.tracking = seconds_since(tracking_start);
         if (!attempt.localized) {
             iterations += attempt.iterations;
             // The headings turn the last pose: where the motion changed, the prediction
             // extrapolates the error (the odometry's rule, odometry_config.hpp).
-            const Eigen::Isometry3d last =
-                records_.empty() ? predicted : records_.back().T_world_sensor;
+            // From the best start when tracking was not tried, else from the prediction.
+            const Eigen::Isometry3d recovery_start_pose =
+                try_tracking ? predicted : starts[best_start];
             const Clock::time_point recovery_start = Clock::now();
-            attempt = recover(wide, predicted, &last);
+            attempt = recover(wide, points, recovery_start_pose, &last);
             stage_seconds_.recovery = seconds_since(recovery_start);
             source = LocalizeSource::kRecovered;
             record.points = wide.size();

@@ -6,16 +6,23 @@
 //   1. the registration points: range window, one point per voxel, at most max_points of them
 //      for tracking and recovery_max_points for steps 4-5 (a deterministic stride:
 //      registration_points.hpp);
-//   2. tracking: registration to the SDF coarse to fine (kernel_scales_m) from the
-//      constant-velocity prediction of the last two poses (the first scan: the initial pose);
+//   2. tracking: registration to the SDF coarse to fine (kernel_scales_m) from the best of a few
+//      starts around the constant-velocity prediction of the last two poses (the first scan:
+//      the initial pose): the prediction if it scores at least prediction_good_score, else the
+//      best of it and the last motion scaled (scans at uneven intervals, a stop, a start) and
+//      turned about the vertical by a few degrees, each scored by the share of a few hundred
+//      points near the surface; the SDF's basin is about 2 degrees and 0.25 m wide (measured on
+//      the real walk), narrower than a hand-held sensor's turn between scans half a second apart;
 //   3. the result counts as localised when the solver accepts it (converged, well conditioned)
 //      AND at least min_inlier_ratio of the registration points lie within inlier_distance_m
 //      of the map's surface there: a scan leaving the map, or pulled into a wrong minimum, has
 //      few such points even when the solver converges;
-//   4. when tracking fails, a recovery with a wider basin: point-to-plane ICP against the map's
-//      surface (its zero level set baked at surface_voxel_m, mesh vertices with their normals),
-//      coarse to fine (icp_coarse_correspondence_m, then icp_correspondence_m) from the
-//      prediction and, when ICP leaves fewer than icp_min_inlier_ratio of the points on a plane,
+//   4. when tracking fails (or its best start scores under track_min_start_score), a recovery
+//      with a wider basin: point-to-plane ICP against the map's surface (its zero level set
+//      baked at surface_voxel_m, mesh vertices with their normals, their nearest ones looked up
+//      by voxel: VoxelNearestLookup), coarse to fine (icp_coarse_correspondence_m, then
+//      icp_correspondence_m) from the prediction (the best start when tracking was skipped)
+//      and, when ICP leaves fewer than icp_min_inlier_ratio of the points on a plane,
 //      from the last pose turned to search_headings headings about the world's vertical axis
 //      (nearest first, until one puts enough points on a plane); the best start is then
 //      registered to the SDF as in step 2;
@@ -56,6 +63,19 @@ struct LocalizeConfig {
     int max_points = 1000;
     /// The recovery and the search (steps 4-5) take up to this many of the same points.
     int recovery_max_points = 2000;
+    /// Step 2's starts: the last motion scaled by each of these (1: constant velocity, first; 0:
+    /// the last pose), each turned about the vertical by every multiple of start_yaw_step_deg up
+    /// to start_yaw_range_deg (0: not turned). The best-scored start is tracked, then the
+    /// constant-velocity prediction itself if that fails.
+    std::vector<double> start_motion_scales = {1.0, 0.5, 2.0, 0.0};
+    double start_yaw_range_deg = 10.0;
+    double start_yaw_step_deg = 2.5;
+    /// A prediction scoring at least this is tracked without scoring the other starts (1: always
+    /// score them all).
+    double prediction_good_score = 0.55;
+    /// A best start scoring below this goes to the recovery (step 4) without tracking: its
+    /// points are too far off the surface for the SDF's basin (0: always track first).
+    double track_min_start_score = 0.3;
     /// Geman-McClure kernel scales of the coarse-to-fine stages, m (decreasing).
     std::vector<double> kernel_scales_m = {0.2, 0.05};
     int max_iterations = 20;  ///< per stage
@@ -70,6 +90,11 @@ struct LocalizeConfig {
     double icp_correspondence_m = 1.0;
     double icp_kernel_scale_m = 0.2;
     double icp_min_inlier_ratio = 0.85;
+    /// The surface's nearest points looked up by voxel (VoxelNearestLookup) for the fine stage
+    /// (within icp_correspondence_m) and the coarse one (icp_coarse_correspondence_m), voxels of
+    /// these sizes; 0: searched in the k-d tree (exact, several times slower).
+    double icp_lookup_voxel_m = 0.25;
+    double icp_coarse_lookup_voxel_m = 0.5;
     /// Step 4-5: headings tried, 360/N degrees apart.
     int search_headings = 12;
     /// Step 5: the global search around the map's places.
@@ -102,6 +127,7 @@ const char* to_string(LocalizeSource source);
 /// last three are parts of tracking, recovery and search, summed over all three.
 struct LocalizeStageSeconds {
     double selection = 0.0;    ///< range window, voxel thinning and the strides
+    double starts = 0.0;       ///< step 2's starts scored
     double tracking = 0.0;     ///< steps 2-3 from the prediction, the acceptance check included
     double recovery = 0.0;     ///< step 4 after a failed tracking, its SDF registration included
     double search = 0.0;       ///< step 5, its candidates' scores, ICP and SDF registrations
@@ -123,7 +149,13 @@ struct LocalizeRecord {
     RegistrationStatus status = RegistrationStatus::kTooFewPoints;
     std::int32_t iterations = 0;  ///< over all registrations of the scan
     std::int32_t candidates = 0;  ///< poses scored by a search (0: no search)
-    double seconds = 0.0;         ///< selection, registration and search
+    /// The start tracking began from: the motion's scale and the turn (degrees) about the
+    /// vertical of the best-scored start (1 and 0: the constant-velocity prediction).
+    double start_motion_scale = 1.0;
+    double start_yaw_deg = 0.0;
+    double start_score = 0.0;       ///< its score (surface_scores)
+    double prediction_score = 0.0;  ///< the constant-velocity prediction's score
+    double seconds = 0.0;           ///< selection, registration and search
     LocalizeStageSeconds stage_seconds;
 };
 
@@ -156,9 +188,16 @@ class MapLocalizer {
     Attempt track(const std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& start) const;
     /// ICP against the surface from `start` (and, when that leaves too few points on a plane,
     /// from `headings_from` turned to each heading), then track() from the best ICP pose.
-    Attempt recover(const std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& start,
-                    const Eigen::Isometry3d* headings_from) const;
+    /// ICP registers `points`, the SDF `track_points` (tracking's fewer points).
+    Attempt recover(const std::vector<Eigen::Vector3f>& points,
+                    const std::vector<Eigen::Vector3f>& track_points,
+                    const Eigen::Isometry3d& start, const Eigen::Isometry3d* headings_from) const;
+    /// Mean over `sample` of max(0, 1 - |SDF| / 2 inlier_distance_m) inside the map, per
+    /// candidate pose (the global search's and the starts' score).
+    std::vector<double> surface_scores(const std::vector<Eigen::Vector3f>& sample,
+                                       const std::vector<Eigen::Isometry3d>& candidates) const;
     Attempt search(const std::vector<Eigen::Vector3f>& points,
+                   const std::vector<Eigen::Vector3f>& track_points,
                    const std::vector<Eigen::Isometry3d>& centres, double radius_m) const;
     /// Share of points within inlier_distance_m of the surface at `pose`, valid count and the
     /// median |SDF| of the valid ones.
