@@ -43,8 +43,8 @@ VoxelNearestLookup::VoxelNearestLookup(const std::vector<Eigen::Vector3d>& point
     for (std::size_t i = 0; i < points_world.size(); ++i) {
         if (!points_world[i].allFinite()) continue;
         if (indexed.empty()) origin_world_ = points_world[i];
-        indexed.push_back({(points_world[i] - origin_world_).cast<float>(),
-                           static_cast<std::uint32_t>(i)});
+        indexed.push_back(
+            {(points_world[i] - origin_world_).cast<float>(), static_cast<std::uint32_t>(i)});
     }
     if (indexed.empty()) return;
     const auto voxel_of = [&](const Eigen::Vector3d& p) -> Eigen::Vector3i {
@@ -66,7 +66,7 @@ VoxelNearestLookup::VoxelNearestLookup(const std::vector<Eigen::Vector3d>& point
     KeyIndexTable visited;
     std::vector<Eigen::Vector3i> layer;
     for (const IndexedPoint& p : indexed) {
-        const Eigen::Vector3i v = voxel_of(origin_world_ + p.position.cast<double>());
+        const Eigen::Vector3i v = voxel_of(points_world[p.index]);
         if ((v.array().abs() > limit).any()) continue;  // farther than 2^20 voxels: not held
         bool inserted = false;
         visited.find_or_insert(key_of(v), &inserted);
@@ -78,25 +78,25 @@ VoxelNearestLookup::VoxelNearestLookup(const std::vector<Eigen::Vector3d>& point
         // The layer's nearest points in parallel (the tree is read-only), then the layer kept
         // and expanded in order: the result does not depend on the thread count.
         found.assign(layer.size(), PointNeighbor{});
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, layer.size(), 256),
-                          [&](const tbb::blocked_range<std::size_t>& r) {
-                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                  PointNeighbor nearest[1];
-                                  if (tree.nearest(centre_of(layer[i]), 1, reach_sq, nearest) ==
-                                      1) {
-                                      found[i] = nearest[0];
-                                  } else {
-                                      found[i].distance_sq = -1.0f;  // beyond the reach
-                                  }
-                              }
-                          });
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, layer.size(), 256),
+            [&](const tbb::blocked_range<std::size_t>& r) {
+                for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                    PointNeighbor nearest[1];
+                    if (tree.nearest(centre_of(layer[i]), 1, reach_sq, nearest) == 1) {
+                        found[i] = nearest[0];
+                    } else {
+                        found[i].distance_sq = -1.0f;  // beyond the reach
+                    }
+                }
+            });
         next.clear();
         for (std::size_t i = 0; i < layer.size(); ++i) {
             if (found[i].distance_sq < 0.0f) continue;
             if (found[i].distance_sq <= radius_sq) {
-                const std::uint32_t slot = table_.find_or_insert(key_of(layer[i]));
-                if (slot >= nearest_.size()) nearest_.resize(slot + 1, -1);
-                nearest_[slot] = static_cast<std::int32_t>(found[i].index);
+                // Each voxel is in one layer only: its slot is the next one.
+                table_.find_or_insert(key_of(layer[i]));
+                nearest_.push_back(static_cast<std::int32_t>(found[i].index));
             }
             for (int dx = -1; dx <= 1; ++dx) {
                 for (int dy = -1; dy <= 1; ++dy) {
