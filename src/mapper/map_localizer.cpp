@@ -16,6 +16,7 @@
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/odometry/registration_points.hpp"
 #include "shine/odometry/sdf_registration.hpp"
+#include "shine/odometry/se3.hpp"
 
 namespace shine {
 namespace {
@@ -43,18 +44,6 @@ Eigen::Isometry3d turned(const Eigen::Isometry3d& pose, double yaw_rad,
     out.linear() =
         Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * pose.linear();
     out.translation() += offset_world;
-    return out;
-}
-
-/// The rigid motion `motion` scaled by `scale`: its rotation angle (same axis) and translation
-/// times `scale`; exactly `motion` for 1 and the identity for 0.
-Eigen::Isometry3d scaled_motion(const Eigen::Isometry3d& motion, double scale) {
-    if (scale == 1.0) return motion;
-    Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-    if (scale == 0.0) return out;
-    const Eigen::AngleAxisd rotation(motion.linear());
-    out.linear() = Eigen::AngleAxisd(scale * rotation.angle(), rotation.axis()).toRotationMatrix();
-    out.translation() = scale * motion.translation();
     return out;
 }
 
@@ -600,7 +589,9 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
         }
         for (const double scale : scales) {
             const Eigen::Isometry3d from =
-                scale == 1.0 ? predicted : Eigen::Isometry3d(last * scaled_motion(motion, scale));
+                scale == 1.0
+                    ? predicted
+                    : Eigen::Isometry3d(last * interpolate_constant_velocity(motion, scale));
             for (int k = 0; k <= 2 * yaw_steps; ++k) {
                 const int h = (k % 2 == 0 ? 1 : -1) * ((k + 1) / 2);  // 0, -1, +1, -2, ...
                 const double yaw_deg = h * config_.start_yaw_step_deg;
