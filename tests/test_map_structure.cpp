@@ -4,12 +4,14 @@
 #include <openvdb/openvdb.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <random>
 #include <tuple>
 
 #include "shine/core/error.hpp"
 #include "shine/map/feature_octree.hpp"
+#include "shine/map/feature_octree_impl.hpp"
 #include "shine/map/feature_table.hpp"
 
 using namespace shine;
@@ -129,6 +131,109 @@ TEST(FeatureOctreeLayout, RowsStayPutAsTheMapGrowsAndLookupsAgreeWithTheCorners)
         }
     }
     EXPECT_GT(found, 1000);
+}
+
+namespace {
+
+// Checks CellLookup::find_cell and FeatureOctree::find_cell against corner_row() at `samples`
+// random points of [-20, 20]^2 x [-1, 3]: same presence, same rows. Returns the cells found.
+int check_lookups(const FeatureOctree& octree, std::mt19937& rng, int samples) {
+    std::uniform_real_distribution<float> u(-20.0f, 20.0f), uz(-1.0f, 3.0f);
+    CellLookup lookup(octree);
+    int found = 0;
+    for (int i = 0; i < samples; ++i) {
+        const Eigen::Vector3f p(u(rng), u(rng), uz(rng));
+        for (int level = 0; level < octree.num_levels(); ++level) {
+            const double cell_m = octree.cell_size_m(level);
+            const Eigen::Vector3i cell(static_cast<int>(std::floor(p.x() / cell_m)),
+                                       static_cast<int>(std::floor(p.y() / cell_m)),
+                                       static_cast<int>(std::floor(p.z() / cell_m)));
+            LevelCorners a, b;
+            const bool has = lookup.find_cell(level, p, a);
+            EXPECT_EQ(has, octree.find_cell(level, p, b));
+            bool complete = true;
+            for (int c = 0; c < 8; ++c) {
+                const std::int32_t row =
+                    octree.corner_row(level, cell + Eigen::Vector3i(c & 1, (c >> 1) & 1, c >> 2));
+                if (row < 0) {
+                    complete = false;
+                } else if (has) {
+                    EXPECT_EQ(a.rows[c], row);
+                    EXPECT_EQ(b.rows[c], row);
+                }
+            }
+            EXPECT_EQ(has, complete);
+            found += has;
+        }
+    }
+    return found;
+}
+
+}  // namespace
+
+TEST(FeatureOctreeLayout, RowsRenumberedInTreeOrderKeepEveryCornersFeatureAndLookups) {
+    FeatureOctreeConfig config;
+    config.leaf_size_m = 0.25;
+    config.num_levels = 3;
+    config.feature_precision = FeaturePrecision::kFloat16;
+    FeatureOctree octree(config);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-20.0f, 20.0f), uz(-1.0f, 3.0f);
+    const auto random_points = [&](int n) {
+        std::vector<Eigen::Vector3f> points;
+        for (int i = 0; i < n; ++i) points.emplace_back(u(rng), u(rng), uz(rng));
+        return points;
+    };
+    // Several allocations: rows in allocation order, with dead slots from leaves that grew.
+    for (int call = 0; call < 4; ++call) octree.allocate_cells(random_points(3000));
+    const auto rows_before = all_rows(octree);
+    std::map<CornerKey, std::vector<float>> feature_before;
+    std::vector<float> value(config.feature_dim);
+    for (const auto& [key, row] : rows_before) {
+        octree.features().get_row(row, value.data());
+        feature_before[key] = value;
+    }
+
+    octree.renumber_rows_in_tree_order();
+    const auto rows_after = all_rows(octree);
+    ASSERT_EQ(rows_after.size(), rows_before.size());
+    ASSERT_EQ(octree.num_corners(), rows_before.size());
+    // A permutation: every corner keeps its feature, level 0's rows come first, then level 1's.
+    std::vector<std::uint8_t> seen(octree.num_corners(), 0);
+    std::vector<std::int32_t> level_min(3, std::numeric_limits<std::int32_t>::max()),
+        level_max(3, -1);
+    int moved = 0;
+    for (const auto& [key, row] : rows_after) {
+        ASSERT_GE(row, 0);
+        ASSERT_LT(static_cast<std::size_t>(row), octree.num_corners());
+        ASSERT_FALSE(seen[row]) << "row " << row << " used twice";
+        seen[row] = 1;
+        octree.features().get_row(row, value.data());
+        ASSERT_EQ(value, feature_before.at(key));
+        const int level = std::get<0>(key);
+        level_min[level] = std::min(level_min[level], row);
+        level_max[level] = std::max(level_max[level], row);
+        moved += row != rows_before.at(key);
+    }
+    EXPECT_GT(moved, 1000);  // the allocation order was not the tree order
+    // Every level's rows follow from its slots, so lookups take the path without a table read.
+    for (const LevelIndex& level : octree.impl().levels) EXPECT_GE(level.identity_base, 0);
+    EXPECT_EQ(level_min[0], 0);
+    EXPECT_EQ(level_min[1], level_max[0] + 1);
+    EXPECT_EQ(level_min[2], level_max[1] + 1);
+    EXPECT_GT(check_lookups(octree, rng, 20000), 1000);
+
+    // The map grows again after the renumbering: old corners keep their new rows, new corners
+    // get rows after them, and lookups still agree (the rows no longer follow the tree order).
+    const std::size_t added = octree.allocate_cells(random_points(2000));
+    ASSERT_GT(added, 0u);
+    const auto rows_grown = all_rows(octree);
+    for (const auto& [key, row] : rows_after) ASSERT_EQ(rows_grown.at(key), row);
+    EXPECT_EQ(octree.impl().levels[0].identity_base, -1);
+    EXPECT_GT(check_lookups(octree, rng, 20000), 1000);
+    // And renumbered once more, the lookups agree again.
+    octree.renumber_rows_in_tree_order();
+    EXPECT_GT(check_lookups(octree, rng, 20000), 1000);
 }
 
 TEST(FeatureOctreeLayout, StructureOfAKnownAllocationStaysBelowMeasuredBounds) {

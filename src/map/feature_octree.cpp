@@ -83,8 +83,9 @@ bool cell_rows(IndexAccessor& accessor, const LevelIndex& level, const openvdb::
             const openvdb::Index64 word = mask.getWord<openvdb::Index64>(w);
             if (!((word >> bit) & 1)) return false;
             const std::uint64_t before_word = w ? (slots.word_prefix >> (9 * (w - 1))) & 511u : 0u;
-            rows[c] = level.rows[slots.first_slot + before_word +
-                                 openvdb::util::CountOn(word & ((openvdb::Index64(1) << bit) - 1))];
+            rows[c] = level.row_of_slot(
+                slots.first_slot + before_word +
+                openvdb::util::CountOn(word & ((openvdb::Index64(1) << bit) - 1)));
         }
         return true;
     }
@@ -192,6 +193,18 @@ std::uint64_t word_prefix_of(const IndexLeaf& leaf) {
     return prefix;
 }
 
+/// Sets level.identity_base (feature_octree_impl.hpp) from `rows`: one pass, stopped at the
+/// first slot that breaks the rule.
+void update_identity_base(LevelIndex& level) {
+    level.identity_base = -1;
+    if (level.dead_slots != 0 || level.rows.empty() || level.rows[0] < 0) return;
+    const std::int64_t base = level.rows[0];
+    for (std::size_t s = 1; s < level.rows.size(); ++s) {
+        if (level.rows[s] != base + std::int64_t(s)) return;
+    }
+    level.identity_base = base;
+}
+
 /// Packs every leaf in tree order into new, exactly sized arrays: the corners active in `fresh`
 /// (may be null) get new_row(), the others keep their rows.
 void pack_all_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& new_row) {
@@ -230,6 +243,7 @@ void pack_all_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow
     level.rows.swap(rows);
     level.leaves.swap(leaves);
     level.dead_slots = 0;
+    update_identity_base(level);
 }
 
 }  // namespace
@@ -282,7 +296,11 @@ void repack_rows(LevelIndex& level, const IndexTree* fresh, const NewCornerRow& 
             level.leaves.push_back(slots);
         }
     }
-    if (level.dead_slots > level.rows.size() - level.dead_slots) compact_rows(level);
+    if (level.dead_slots > level.rows.size() - level.dead_slots) {
+        compact_rows(level);
+    } else {
+        update_identity_base(level);
+    }
 }
 
 namespace {
@@ -479,6 +497,31 @@ std::size_t FeatureOctree::allocate_cells(const std::vector<Eigen::Vector3f>& po
 
 void FeatureOctree::compact_structure() {
     for (LevelIndex& level : impl_->levels) compact_rows(level);
+}
+
+void FeatureOctree::renumber_rows_in_tree_order() {
+    FeatureTable renumbered(features_.dim(), features_.precision());
+    renumbered.resize(features_.num_rows());
+    std::size_t next = 0;
+    for (LevelIndex& level : impl_->levels) {
+        compact_rows(level);  // every slot live, leaves in tree order
+        for (std::int32_t& row : level.rows) {
+            if (row < 0 || static_cast<std::size_t>(row) >= features_.num_rows() ||
+                next >= features_.num_rows()) {
+                throw Error("renumber_rows_in_tree_order: corner row " + std::to_string(row) +
+                            " outside the feature table of " +
+                            std::to_string(features_.num_rows()) + " rows");
+            }
+            renumbered.copy_rows(features_, static_cast<std::size_t>(row), next, 1);
+            row = static_cast<std::int32_t>(next++);
+        }
+        update_identity_base(level);
+    }
+    if (next != features_.num_rows()) {
+        throw Error("renumber_rows_in_tree_order: " + std::to_string(next) + " corners but " +
+                    std::to_string(features_.num_rows()) + " feature rows");
+    }
+    features_ = std::move(renumbered);
 }
 
 bool FeatureOctree::find_cell(int level, const Eigen::Vector3f& point_map,

@@ -120,6 +120,18 @@ StageSeconds BatchMapper::add_scan(const Scan& scan) {
 }
 
 void BatchMapper::finish_scans() {
+    drop_dynamic_points();
+    // The map is complete: its rows in tree order (FeatureOctree::renumber_rows_in_tree_order),
+    // once per size, and only while no optimiser state refers to the rows. Training gives the
+    // same results in any row order; in tree order a step's cell lookups and feature reads
+    // touch fewer cache lines.
+    if (!trainer_ && sdf_->octree.num_corners() != renumbered_corners_) {
+        sdf_->octree.renumber_rows_in_tree_order();
+        renumbered_corners_ = sdf_->octree.num_corners();
+    }
+}
+
+void BatchMapper::drop_dynamic_points() {
     if (!config_.dynamic.enabled || dynamic_dropped_) return;
     dynamic_dropped_ = true;
     auto start = std::chrono::steady_clock::now();

@@ -91,6 +91,13 @@ class FeatureOctree {
     /// Packs the per-corner rows of every level afresh (allocation leaves dead slots behind when
     /// leaves gain corners): for a map that stops growing. Rows and queries are unchanged.
     void compact_structure();
+    /// Gives the corners new rows in tree order, level after level (level 0 first; leaf by leaf,
+    /// voxel order inside a leaf), each corner's feature moving with it, and packs the structure.
+    /// Then the corners of a cell have nearby rows (its features share cache lines) and a
+    /// corner's row follows from its place in the tree without a table read. Queries return the
+    /// same values; only row numbers change, so anything holding per-row state (a Trainer) must
+    /// be made after it. Batch mode calls it once its map is complete.
+    void renumber_rows_in_tree_order();
 
     /// Finds the cell of `level` containing `point_map`; false if any of its corners is missing.
     /// Convenience for single queries; hot loops use a CellLookup per thread.

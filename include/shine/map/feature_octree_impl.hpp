@@ -54,6 +54,17 @@ struct LevelIndex {
     /// Per leaf; a leaf's transient data is its index here.
     std::vector<LeafSlots> leaves;
     std::size_t dead_slots = 0;  ///< slots of `rows` no leaf refers to
+    /// When every slot s holds row identity_base + s (the level's corners were given rows in
+    /// tree order in one allocation, as a batch map's are, and no slot is dead): that base, and
+    /// a corner's row is found without reading `rows` (its loads were half of a training step's
+    /// cell lookups). -1 otherwise. Kept by repack_rows() and compact_rows().
+    std::int64_t identity_base = -1;
+
+    /// The row in slot `slot`.
+    std::int32_t row_of_slot(std::size_t slot) const {
+        return identity_base >= 0 ? static_cast<std::int32_t>(identity_base + std::int64_t(slot))
+                                  : rows[slot];
+    }
 
     /// Bytes of the grid's tree (memUsage(), as for any OpenVDB grid), the packed rows and the
     /// per-leaf slots.
@@ -97,7 +108,7 @@ template <typename AccessorT>
 inline std::int32_t index_row(AccessorT& accessor, const LevelIndex& level,
                               const openvdb::Coord& ijk) {
     const std::int32_t slot = index_slot(accessor, level, ijk);
-    return slot < 0 ? -1 : level.rows[static_cast<std::size_t>(slot)];
+    return slot < 0 ? -1 : level.row_of_slot(static_cast<std::size_t>(slot));
 }
 
 /// Returns the feature row of a corner (corner coordinates) that has just been activated.

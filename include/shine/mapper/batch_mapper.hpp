@@ -153,11 +153,16 @@ class BatchMapper {
     const RaySet& rays() const { return rays_; }
 
     /// Ends the loading: with the dynamic-point filter, drops the dynamic points and allocates the
-    /// map around the rest (once; later calls do nothing). train() and load_state() call it; call
-    /// it before planned_iterations() or the map's size are needed, as they depend on the map.
+    /// map around the rest (once); before training, puts the map's feature rows in tree order
+    /// (FeatureOctree::renumber_rows_in_tree_order; again only if the map grew). train() and
+    /// load_state() call it; call it before planned_iterations() or the map's size are needed,
+    /// as they depend on the map.
     void finish_scans();
 
   private:
+    /// finish_scans()' first part: with the dynamic-point filter, drops the dynamic points and
+    /// allocates the map around the rest (once).
+    void drop_dynamic_points();
     /// The steps of train() up to `until`; `refining` (refine_poses()): with the rounds of pose
     /// refinement due on the way and at `until`.
     bool run_steps(int until, bool refining,
@@ -188,6 +193,8 @@ class BatchMapper {
     bool dynamic_dropped_ = false;
     // Training state, kept between train() calls.
     std::unique_ptr<Trainer> trainer_;
+    /// Corners when finish_scans() last put the rows in tree order (0: never).
+    std::size_t renumbered_corners_ = 0;
     bool normals_done_ = false;
     int iterations_done_ = 0;
     double bce_average_ = 0.0;
