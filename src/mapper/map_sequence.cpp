@@ -1,6 +1,7 @@
 #include "shine/mapper/map_sequence.hpp"
 
 #include <tbb/global_control.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <chrono>
@@ -79,6 +80,37 @@ void write_batch_checkpoint(const RunControl& control, const BatchMapper& mapper
                      });
 }
 
+/// Loads the scans 0 .. count - 1 with load(i, seconds) and hands each to add(i, scan,
+/// load_seconds), in order. While scan i is added, a task loads scan i + 1 and runs
+/// alongside(i, scan i), on the core that the map's preprocessing leaves idle at times; for the
+/// first scan alongside() runs after add() (which may set what it reads: the map's origin). An
+/// exception from any of them ends the loop once the task has finished.
+template <class Load, class Add, class Alongside>
+void add_scans_loading_ahead(std::size_t count, const Load& load, const Add& add,
+                             const Alongside& alongside) {
+    double load_seconds = 0.0;
+    Scan scan = count > 0 ? load(std::size_t(0), load_seconds) : Scan{};
+    for (std::size_t i = 0; i < count; ++i) {
+        Scan next;
+        double next_load_seconds = 0.0;
+        tbb::task_group tasks;
+        tasks.run([&] {
+            if (i > 0) alongside(i, scan);
+            if (i + 1 < count) next = load(i + 1, next_load_seconds);
+        });
+        try {
+            add(i, scan, load_seconds);
+        } catch (...) {
+            tasks.wait();
+            throw;
+        }
+        tasks.wait();
+        if (i == 0) alongside(i, scan);
+        scan = std::move(next);
+        load_seconds = next_load_seconds;
+    }
+}
+
 /// Pose refinement's first phase (pose_refinement.hpp): a map of every scan at the given poses,
 /// trained up to the last round of refinement, the rounds on the way. The dynamic-point filter
 /// is off here: at poses off by centimetres other scans see through true surfaces, and points
@@ -107,17 +139,24 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
     };
     {
         Progress progress(tagged("load", progress_tag), sequence.size());
-        for (std::size_t i = 0; i < sequence.size(); ++i) {
-            Scan scan = sequence.load(i);
-            if (deskew) deskew_with_sequence_poses(scan, sequence, i, config.deskew, ignored);
-            mapper.add_scan(scan);
-            progress.update(i + 1, std::to_string(mapper.sdf().octree.num_corners()) + " corners");
-            if (i + 1 < sequence.size() && stop()) {
-                stop_here(progress, "while loading for pose refinement, after scan " +
-                                        std::to_string(i + 1) + " of " +
-                                        std::to_string(sequence.size()));
-            }
-        }
+        add_scans_loading_ahead(
+            sequence.size(),
+            [&](std::size_t i, double&) {
+                Scan scan = sequence.load(i);
+                if (deskew) deskew_with_sequence_poses(scan, sequence, i, config.deskew, ignored);
+                return scan;
+            },
+            [&](std::size_t i, const Scan& scan, double) {
+                mapper.add_scan(scan);
+                progress.update(i + 1,
+                                std::to_string(mapper.sdf().octree.num_corners()) + " corners");
+                if (i + 1 < sequence.size() && stop()) {
+                    stop_here(progress, "while loading for pose refinement, after scan " +
+                                            std::to_string(i + 1) + " of " +
+                                            std::to_string(sequence.size()));
+                }
+            },
+            [](std::size_t, const Scan&) {});
         mapper.finish_scans();
         progress.finish(std::to_string(mapper.stats().rays) + " rays");
     }
@@ -201,34 +240,44 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
         const bool deskew = deskew_active(config.deskew, config.odometry.estimate_poses,
                                           sequence.has_sweep_times());
         result.deskew.active = deskew;
-        for (std::size_t i = 0; i < sequence.size(); ++i) {
-            const auto t0 = std::chrono::steady_clock::now();
-            Scan scan = sequence.load(i);
-            if (deskew) deskew_with_sequence_poses(scan, sequence, i, config.deskew, result.deskew);
-            const double load_seconds = seconds_since(t0);
-            StageSeconds stages = mapper.add_scan(scan);
-            stages[Stage::kLoad] = load_seconds;
-            if (!scan.intensity.empty()) {
-                if (!result.reflectance) {
+        // The next scan is read and deskewed, and this one's intensities go into the
+        // reflectance voxels, while this one is added (in order, as one after another would).
+        add_scans_loading_ahead(
+            sequence.size(),
+            [&](std::size_t i, double& seconds) {
+                const auto t0 = std::chrono::steady_clock::now();
+                Scan scan = sequence.load(i);
+                if (deskew) {
+                    deskew_with_sequence_poses(scan, sequence, i, config.deskew, result.deskew);
+                }
+                seconds = seconds_since(t0);
+                if (!scan.intensity.empty() && !result.reflectance) {
                     result.reflectance.emplace(
                         resolve_bake_voxel_size_m(config.bake, config.octree.leaf_size_m));
                 }
+                return scan;
+            },
+            [&](std::size_t i, const Scan& scan, double load_seconds) {
+                StageSeconds stages = mapper.add_scan(scan);
+                stages[Stage::kLoad] = load_seconds;
+                result.profile.frames.push_back(stages);
+                progress.update(
+                    i + 1, config.dynamic.enabled
+                               ? std::to_string(mapper.stats().rays) + " rays"
+                               : std::to_string(mapper.sdf().octree.num_corners()) + " corners");
+                if (checkpoints && !resume && i + 1 < sequence.size() && stop()) {
+                    progress.finish("stopped");
+                    write_batch_checkpoint(*control, mapper, BatchPhase::kLoading);
+                    throw_stopped_with_checkpoint(*control, "while loading, after scan " +
+                                                                std::to_string(i + 1) + " of " +
+                                                                std::to_string(sequence.size()));
+                }
+            },
+            [&](std::size_t, const Scan& scan) {
+                if (scan.intensity.empty()) return;
                 add_scan_reflectance(*result.reflectance, scan, mapper.sdf().origin_world_m,
                                      config.preprocess);
-            }
-            result.profile.frames.push_back(stages);
-            progress.update(i + 1,
-                            config.dynamic.enabled
-                                ? std::to_string(mapper.stats().rays) + " rays"
-                                : std::to_string(mapper.sdf().octree.num_corners()) + " corners");
-            if (checkpoints && !resume && i + 1 < sequence.size() && stop()) {
-                progress.finish("stopped");
-                write_batch_checkpoint(*control, mapper, BatchPhase::kLoading);
-                throw_stopped_with_checkpoint(*control, "while loading, after scan " +
-                                                            std::to_string(i + 1) + " of " +
-                                                            std::to_string(sequence.size()));
-            }
-        }
+            });
         mapper.finish_scans();
         progress.finish(std::to_string(mapper.stats().rays) + " rays, " +
                         std::to_string(mapper.sdf().octree.num_corners()) + " corners");
