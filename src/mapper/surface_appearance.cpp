@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <chrono>
 #include <cmath>
@@ -151,8 +152,20 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
 
     const fs::path mesh_path = out_dir / "mesh.ply";
     const fs::path surface_path = out_dir / "surface.vdb";
-    TriangleMesh mesh = read_ply_mesh(mesh_path);
-    const openvdb::FloatGrid::Ptr level_set = read_level_set(surface_path);
+    // The mesh and the level set are read side by side.
+    TriangleMesh mesh;
+    openvdb::FloatGrid::Ptr level_set;
+    {
+        tbb::task_group reads;
+        reads.run([&] { mesh = read_ply_mesh(mesh_path); });
+        try {
+            level_set = read_level_set(surface_path);
+        } catch (...) {
+            reads.wait();
+            throw;
+        }
+        reads.wait();
+    }
     const double voxel_m = level_set->transform().voxelSize()[0];
     stats.vertices = mesh.vertices.size();
     openvdb::GridPtrVec extra;
