@@ -8,7 +8,9 @@
 namespace shine {
 namespace {
 const std::string kMagic = "SHINE-CHECKPOINT";
-constexpr std::uint32_t kFormatVersion = 3;  // 3: frame statistics say whether trained (keyframes)
+// 4: a batch map's feature rows in tree order (a version-3 checkpoint's rows would be read into
+// the wrong corners); 3: frame statistics say whether trained (keyframes).
+constexpr std::uint32_t kFormatVersion = 4;
 constexpr std::uint32_t kByteOrderMark = 0x01020304u;
 }  // namespace
 
