@@ -63,6 +63,57 @@ std::size_t default_int32_grid_bytes(const FeatureOctree& octree) {
     return bytes;
 }
 
+// Every row of `rows` is distinct and in [0, num_corners).
+void expect_distinct_rows(const std::map<CornerKey, std::int32_t>& rows, std::size_t num_corners) {
+    std::vector<std::uint8_t> seen(num_corners, 0);
+    for (const auto& [key, row] : rows) {
+        ASSERT_GE(row, 0);
+        ASSERT_LT(static_cast<std::size_t>(row), num_corners);
+        ASSERT_FALSE(seen[row]) << "row " << row << " used twice";
+        seen[row] = 1;
+    }
+}
+
+// Checks CellLookup::find_cell and FeatureOctree::find_cell against corner_row() at `samples`
+// random points of [-20, 20]^2 x [-1, 3]: same presence, same rows; with `expected`, corner_row()
+// also gives each corner its row there (-1 for a corner not in it). Returns the cells found.
+int check_lookups(const FeatureOctree& octree, std::mt19937& rng, int samples,
+                  const std::map<CornerKey, std::int32_t>* expected = nullptr) {
+    std::uniform_real_distribution<float> u(-20.0f, 20.0f), uz(-1.0f, 3.0f);
+    CellLookup lookup(octree);
+    int found = 0;
+    for (int i = 0; i < samples; ++i) {
+        const Eigen::Vector3f p(u(rng), u(rng), uz(rng));
+        for (int level = 0; level < octree.num_levels(); ++level) {
+            const double cell_m = octree.cell_size_m(level);
+            const Eigen::Vector3i cell(static_cast<int>(std::floor(p.x() / cell_m)),
+                                       static_cast<int>(std::floor(p.y() / cell_m)),
+                                       static_cast<int>(std::floor(p.z() / cell_m)));
+            LevelCorners a, b;
+            const bool has = lookup.find_cell(level, p, a);
+            EXPECT_EQ(has, octree.find_cell(level, p, b));
+            bool complete = true;
+            for (int c = 0; c < 8; ++c) {
+                const Eigen::Vector3i corner = cell + Eigen::Vector3i(c & 1, (c >> 1) & 1, c >> 2);
+                const std::int32_t row = octree.corner_row(level, corner);
+                if (expected) {
+                    const auto it = expected->find({level, corner.x(), corner.y(), corner.z()});
+                    EXPECT_EQ(row, it == expected->end() ? -1 : it->second);
+                }
+                if (row < 0) {
+                    complete = false;
+                } else if (has) {
+                    EXPECT_EQ(a.rows[c], row);
+                    EXPECT_EQ(b.rows[c], row);
+                }
+            }
+            EXPECT_EQ(has, complete);
+            found += has;
+        }
+    }
+    return found;
+}
+
 }  // namespace
 
 TEST(FeatureOctreeLayout, RowsStayPutAsTheMapGrowsAndLookupsAgreeWithTheCorners) {
@@ -82,13 +133,7 @@ TEST(FeatureOctreeLayout, RowsStayPutAsTheMapGrowsAndLookupsAgreeWithTheCorners)
         EXPECT_EQ(rows.size(), before.size() + added);
         // Old corners keep their rows; all rows are distinct and in range.
         for (const auto& [key, row] : before) ASSERT_EQ(rows.at(key), row);
-        std::vector<std::uint8_t> seen(octree.num_corners(), 0);
-        for (const auto& [key, row] : rows) {
-            ASSERT_GE(row, 0);
-            ASSERT_LT(static_cast<std::size_t>(row), octree.num_corners());
-            ASSERT_FALSE(seen[row]) << "row " << row << " used twice";
-            seen[row] = 1;
-        }
+        expect_distinct_rows(rows, octree.num_corners());
         before = rows;
     }
     // Each row holds its corner's initial feature (a pure function of seed, level and corner).
@@ -101,75 +146,8 @@ TEST(FeatureOctreeLayout, RowsStayPutAsTheMapGrowsAndLookupsAgreeWithTheCorners)
         ASSERT_EQ(stored, expected) << "level " << level << " corner " << x << "," << y << "," << z;
     }
     // Lookups through a CellLookup and find_cell return the rows of the cell's corners.
-    CellLookup lookup(octree);
-    int found = 0;
-    for (int i = 0; i < 20000; ++i) {
-        const Eigen::Vector3f p(u(rng), u(rng), uz(rng));
-        for (int level = 0; level < 3; ++level) {
-            const double cell_m = octree.cell_size_m(level);
-            const Eigen::Vector3i cell(static_cast<int>(std::floor(p.x() / cell_m)),
-                                       static_cast<int>(std::floor(p.y() / cell_m)),
-                                       static_cast<int>(std::floor(p.z() / cell_m)));
-            LevelCorners a, b;
-            const bool has = lookup.find_cell(level, p, a);
-            ASSERT_EQ(has, octree.find_cell(level, p, b));
-            bool complete = true;
-            for (int c = 0; c < 8; ++c) {
-                const Eigen::Vector3i corner = cell + Eigen::Vector3i(c & 1, (c >> 1) & 1, c >> 2);
-                const auto it = before.find({level, corner.x(), corner.y(), corner.z()});
-                const std::int32_t row = octree.corner_row(level, corner);
-                ASSERT_EQ(row, it == before.end() ? -1 : it->second);
-                if (row < 0) {
-                    complete = false;
-                } else if (has) {
-                    ASSERT_EQ(a.rows[c], row);
-                    ASSERT_EQ(b.rows[c], row);
-                }
-            }
-            ASSERT_EQ(has, complete);
-            found += has;
-        }
-    }
-    EXPECT_GT(found, 1000);
+    EXPECT_GT(check_lookups(octree, rng, 20000, &before), 1000);
 }
-
-namespace {
-
-// Checks CellLookup::find_cell and FeatureOctree::find_cell against corner_row() at `samples`
-// random points of [-20, 20]^2 x [-1, 3]: same presence, same rows. Returns the cells found.
-int check_lookups(const FeatureOctree& octree, std::mt19937& rng, int samples) {
-    std::uniform_real_distribution<float> u(-20.0f, 20.0f), uz(-1.0f, 3.0f);
-    CellLookup lookup(octree);
-    int found = 0;
-    for (int i = 0; i < samples; ++i) {
-        const Eigen::Vector3f p(u(rng), u(rng), uz(rng));
-        for (int level = 0; level < octree.num_levels(); ++level) {
-            const double cell_m = octree.cell_size_m(level);
-            const Eigen::Vector3i cell(static_cast<int>(std::floor(p.x() / cell_m)),
-                                       static_cast<int>(std::floor(p.y() / cell_m)),
-                                       static_cast<int>(std::floor(p.z() / cell_m)));
-            LevelCorners a, b;
-            const bool has = lookup.find_cell(level, p, a);
-            EXPECT_EQ(has, octree.find_cell(level, p, b));
-            bool complete = true;
-            for (int c = 0; c < 8; ++c) {
-                const std::int32_t row =
-                    octree.corner_row(level, cell + Eigen::Vector3i(c & 1, (c >> 1) & 1, c >> 2));
-                if (row < 0) {
-                    complete = false;
-                } else if (has) {
-                    EXPECT_EQ(a.rows[c], row);
-                    EXPECT_EQ(b.rows[c], row);
-                }
-            }
-            EXPECT_EQ(has, complete);
-            found += has;
-        }
-    }
-    return found;
-}
-
-}  // namespace
 
 TEST(FeatureOctreeLayout, RowsRenumberedInTreeOrderKeepEveryCornersFeatureAndLookups) {
     FeatureOctreeConfig config;
@@ -199,15 +177,11 @@ TEST(FeatureOctreeLayout, RowsRenumberedInTreeOrderKeepEveryCornersFeatureAndLoo
     ASSERT_EQ(rows_after.size(), rows_before.size());
     ASSERT_EQ(octree.num_corners(), rows_before.size());
     // A permutation: every corner keeps its feature, level 0's rows come first, then level 1's.
-    std::vector<std::uint8_t> seen(octree.num_corners(), 0);
+    expect_distinct_rows(rows_after, octree.num_corners());
     std::vector<std::int32_t> level_min(3, std::numeric_limits<std::int32_t>::max()),
         level_max(3, -1);
     int moved = 0;
     for (const auto& [key, row] : rows_after) {
-        ASSERT_GE(row, 0);
-        ASSERT_LT(static_cast<std::size_t>(row), octree.num_corners());
-        ASSERT_FALSE(seen[row]) << "row " << row << " used twice";
-        seen[row] = 1;
         octree.features().get_row(row, value.data());
         ASSERT_EQ(value, feature_before.at(key));
         const int level = std::get<0>(key);
