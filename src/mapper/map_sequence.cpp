@@ -1,7 +1,7 @@
 #include "shine/mapper/map_sequence.hpp"
 
 #include <tbb/global_control.h>
-#include <tbb/task_group.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <chrono>
@@ -81,10 +81,10 @@ void write_batch_checkpoint(const RunControl& control, const BatchMapper& mapper
 }
 
 /// Loads the scans 0 .. count - 1 with load(i, seconds) and hands each to add(i, scan,
-/// load_seconds), in order. While scan i is added, a task loads scan i + 1 and runs
-/// alongside(i, scan i), on the core that the map's preprocessing leaves idle at times; for the
-/// first scan alongside() runs after add() (which may set what it reads: the map's origin). An
-/// exception from any of them ends the loop once the task has finished.
+/// load_seconds), in order. Beside the adding of scan i (tbb::parallel_invoke), scan i + 1 is
+/// loaded and alongside(i, scan i) runs, on the core that the map's preprocessing leaves idle at
+/// times; for the first scan alongside() runs after add() (which may set what it reads: the map's
+/// origin). An exception from any of them ends the loop once both sides have finished.
 template <class Load, class Add, class Alongside>
 void add_scans_loading_ahead(std::size_t count, const Load& load, const Add& add,
                              const Alongside& alongside) {
@@ -93,18 +93,11 @@ void add_scans_loading_ahead(std::size_t count, const Load& load, const Add& add
     for (std::size_t i = 0; i < count; ++i) {
         Scan next;
         double next_load_seconds = 0.0;
-        tbb::task_group tasks;
-        tasks.run([&] {
-            if (i > 0) alongside(i, scan);
-            if (i + 1 < count) next = load(i + 1, next_load_seconds);
-        });
-        try {
-            add(i, scan, load_seconds);
-        } catch (...) {
-            tasks.wait();
-            throw;
-        }
-        tasks.wait();
+        tbb::parallel_invoke([&] { add(i, scan, load_seconds); },
+                             [&] {
+                                 if (i > 0) alongside(i, scan);
+                                 if (i + 1 < count) next = load(i + 1, next_load_seconds);
+                             });
         if (i == 0) alongside(i, scan);
         scan = std::move(next);
         load_seconds = next_load_seconds;

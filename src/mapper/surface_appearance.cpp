@@ -2,7 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_group.h>
+#include <tbb/parallel_invoke.h>
 
 #include <chrono>
 #include <cmath>
@@ -155,17 +155,8 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
     // The mesh and the level set are read side by side.
     TriangleMesh mesh;
     openvdb::FloatGrid::Ptr level_set;
-    {
-        tbb::task_group reads;
-        reads.run([&] { mesh = read_ply_mesh(mesh_path); });
-        try {
-            level_set = read_level_set(surface_path);
-        } catch (...) {
-            reads.wait();
-            throw;
-        }
-        reads.wait();
-    }
+    tbb::parallel_invoke([&] { mesh = read_ply_mesh(mesh_path); },
+                         [&] { level_set = read_level_set(surface_path); });
     const double voxel_m = level_set->transform().voxelSize()[0];
     stats.vertices = mesh.vertices.size();
     openvdb::GridPtrVec extra;
