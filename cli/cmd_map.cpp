@@ -328,6 +328,51 @@ nlohmann::json deskew_to_json(const DeskewConfig& config, const DeskewStats& sta
     return json;
 }
 
+/// Pose refinement's products: every selected scan's refined pose (the mapped scans' from
+/// `refined_mapped`, the held-out ones from the corrections of the mapped scans around them,
+/// never from their own points) written to poses_refined.txt and poses_refined_tum.txt, and
+/// `given` (the poses the map started from, line by line with it: `shine localize` reports
+/// poses in their frame, geometry/pose_frame_correction.hpp) to poses_given.txt. `json` gets
+/// the rounds, the largest move from `given` and the file. Returns the refined poses.
+std::vector<Eigen::Isometry3d> write_refined_poses(
+    const fs::path& out, const ScanSequence& selected, const HoldoutSplit& split,
+    const std::vector<Eigen::Isometry3d>& given,
+    const std::vector<Eigen::Isometry3d>& refined_mapped,
+    const std::vector<PoseRefinementRound>& rounds, const MapperConfig& config,
+    nlohmann::json& json) {
+    const std::vector<Eigen::Isometry3d> refined =
+        poses_with_corrections(selected, split.mapped, given, refined_mapped);
+    write_kitti_poses(out / "poses_refined.txt", refined);
+    write_kitti_poses(out / "poses_given.txt", given);
+    std::vector<StampedPose> stamped(refined.size());
+    for (std::size_t i = 0; i < refined.size(); ++i) {
+        stamped[i].timestamp_s =
+            selected.from_recording()
+                ? selected.stamp_s(i)
+                : static_cast<double>(selected.frame_number(i)) * config.deskew.scan_period_s;
+        stamped[i].T_world_sensor = refined[i];
+    }
+    write_tum_poses(out / "poses_refined_tum.txt", stamped);
+    json["rounds"] = nlohmann::json::array();
+    for (const PoseRefinementRound& r : rounds) {
+        json["rounds"].push_back({{"step", r.step},
+                                  {"accepted", r.accepted},
+                                  {"rejected", r.rejected},
+                                  {"median_translation_m", r.median_translation_m},
+                                  {"median_rotation_deg", r.median_rotation_deg},
+                                  {"max_translation_m", r.max_translation_m},
+                                  {"gauge_translation_m", r.gauge_translation_m},
+                                  {"seconds", r.seconds}});
+    }
+    double moved_m = 0.0;
+    for (std::size_t i = 0; i < refined.size(); ++i) {
+        moved_m = std::max(moved_m, (refined[i].translation() - given[i].translation()).norm());
+    }
+    json["max_moved_m"] = moved_m;
+    json["poses"] = (out / "poses_refined.txt").string();
+    return refined;
+}
+
 /// The mesh scored again after the SE(3) alignment of the map's poses (`estimated`) to paired
 /// reference poses (`reference`; Umeyama over their positions and axes), so that the frame the
 /// map was made in and the map's own accuracy show apart: stats.json `key`. With estimated poses
@@ -609,13 +654,14 @@ int run_map(const MapOptions& given_options) {
     // Camera images colour the surface; a broken calibration is named before any mapping
     // (and before the sweep test reads scans).
     const std::optional<CameraRig> cameras = find_sequence_cameras(selected, opt.quiet || resuming);
-    // Times from the azimuth under `auto` only where they were measured to win: batch mode with
-    // given poses, refined (the refinement registers the deskewed scans; at given poses, fitted
-    // to the skewed scans, deskewing lost points on the real drive, and with estimated poses it
-    // lost 0.3-0.9 points: docs/field.md).
+    // Times from the azimuth under `auto` only where they were measured to win: given poses,
+    // refined (batch mode, or incremental mode's consolidation: the refinement registers the
+    // deskewed scans; at given poses, fitted to the skewed scans, deskewing lost points on the
+    // real drive, and with estimated poses it lost 0.3-0.9 points: docs/field.md).
+    const bool refining_given_poses =
+        config.refine.rounds > 0 && (opt.mode == "batch" || config.refine.in_consolidation);
     if (config.deskew.azimuth_times != DeskewMode::kAuto ||
-        (opt.mode == "batch" && config.refine.rounds > 0 && !estimate_option &&
-         selected.has_poses())) {
+        (refining_given_poses && !estimate_option && selected.has_poses())) {
         selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
     }
     // --from: the old map, read before anything is written (a missing or damaged map is named
@@ -799,39 +845,9 @@ int run_map(const MapOptions& given_options) {
             given =
                 heldout_poses_local_to_estimate(selected, split, odometry_run->odometry->poses());
         }
-        refined =
-            poses_with_corrections(selected, split.mapped, given, batch_map->refined_poses_world);
-        write_kitti_poses(out / "poses_refined.txt", refined);
-        // The poses the map started from, line by line with poses_refined.txt: `shine localize`
-        // reports poses in their frame (geometry/pose_frame_correction.hpp).
-        write_kitti_poses(out / "poses_given.txt", given);
-        std::vector<StampedPose> stamped(refined.size());
-        for (std::size_t i = 0; i < refined.size(); ++i) {
-            stamped[i].timestamp_s =
-                selected.from_recording()
-                    ? selected.stamp_s(i)
-                    : static_cast<double>(selected.frame_number(i)) * config.deskew.scan_period_s;
-            stamped[i].T_world_sensor = refined[i];
-        }
-        write_tum_poses(out / "poses_refined_tum.txt", stamped);
+        refined = write_refined_poses(out, selected, split, given, batch_map->refined_poses_world,
+                                      batch_map->refinement, config, refine_json);
         scored = selected.with_poses(refined);
-        refine_json["rounds"] = nlohmann::json::array();
-        for (const PoseRefinementRound& r : batch_map->refinement) {
-            refine_json["rounds"].push_back({{"step", r.step},
-                                             {"accepted", r.accepted},
-                                             {"rejected", r.rejected},
-                                             {"median_translation_m", r.median_translation_m},
-                                             {"median_rotation_deg", r.median_rotation_deg},
-                                             {"max_translation_m", r.max_translation_m},
-                                             {"gauge_translation_m", r.gauge_translation_m},
-                                             {"seconds", r.seconds}});
-        }
-        double moved_m = 0.0;
-        for (std::size_t i = 0; i < refined.size(); ++i) {
-            moved_m = std::max(moved_m, (refined[i].translation() - given[i].translation()).norm());
-        }
-        refine_json["max_moved_m"] = moved_m;
-        refine_json["poses"] = (out / "poses_refined.txt").string();
         refine_json["seconds"] = batch_map->refine_seconds;
         refine_json["warm_start"] = {
             {"used", batch_map->warm_start_corners > 0},
@@ -845,8 +861,35 @@ int run_map(const MapOptions& given_options) {
             "poses refined with the map in %.1f s: %zu rounds, the last moved %zu scans by %.3f m "
             "/ %.3f deg (median), at most %.3f m from the given poses in all; wrote %s\n",
             batch_map->refine_seconds, batch_map->refinement.size(), last.accepted,
-            last.median_translation_m, last.median_rotation_deg, moved_m,
-            (out / "poses_refined.txt").c_str());
+            last.median_translation_m, last.median_rotation_deg,
+            refine_json["max_moved_m"].get<double>(), (out / "poses_refined.txt").c_str());
+    }
+    if (incremental_map && !incremental_map->refined_poses_world.empty()) {
+        // Incremental mode refined its kept scans' poses in the consolidation: the poses it
+        // mapped at (the data's or the estimates) corrected, held-out scans as in batch mode.
+        // With estimated poses the held-out scans stay scored at the data's poses ("heldout",
+        // the estimate's drift counted) and next to the refined estimate ("heldout_local").
+        std::vector<Eigen::Isometry3d> given(selected.size());
+        for (std::size_t i = 0; i < selected.size(); ++i) given[i] = selected.pose(i);
+        if (incremental_map->odometry) {
+            given = heldout_poses_local_to_estimate(selected, split,
+                                                    incremental_map->odometry->poses());
+        }
+        const std::vector<PoseRefinementRound>& rounds =
+            incremental_map->mapper->consolidation().refinement;
+        refined =
+            write_refined_poses(out, selected, split, given, incremental_map->refined_poses_world,
+                                rounds, config, refine_json);
+        if (!incremental_map->odometry) scored = selected.with_poses(refined);
+        refine_json["in_consolidation"] = true;
+        refine_json["kept_scans"] = incremental_map->mapper->consolidation().scans;
+        const PoseRefinementRound& last = rounds.back();
+        std::printf(
+            "poses of the %zu kept scans refined in the consolidation: %zu rounds, the last "
+            "moved %zu scans by %.3f m / %.3f deg (median), at most %.3f m in all; wrote %s\n",
+            incremental_map->mapper->consolidation().scans, rounds.size(), last.accepted,
+            last.median_translation_m, last.median_rotation_deg,
+            refine_json["max_moved_m"].get<double>(), (out / "poses_refined.txt").c_str());
     }
     // Colour and reflectance, at the poses the map was made at.
     nlohmann::json appearance_json;
@@ -856,6 +899,8 @@ int run_map(const MapOptions& given_options) {
             mapped_final = scored.subset(split.mapped);
         } else if (odometry_run) {
             mapped_final = sequence.with_poses(odometry_run->odometry->poses());
+        } else if (incremental_map && !incremental_map->refined_poses_world.empty()) {
+            mapped_final = sequence.with_poses(incremental_map->refined_poses_world);
         } else if (incremental_map && incremental_map->odometry) {
             mapped_final = sequence.with_poses(incremental_map->odometry->poses());
         }
@@ -1012,11 +1057,16 @@ int run_map(const MapOptions& given_options) {
         std::printf(
             "held-out scans placed relative to the estimated pose of the mapped scan before "
             "each (the data's relative motion; drift not counted):\n");
-        score_heldout(out / "mesh.ply",
-                      selected.with_poses(
-                          heldout_poses_local_to_estimate(selected, split, odometry->poses())),
-                      split, opt.holdout_every, config.preprocess, json, "heldout_local",
-                      deskew ? &config.deskew : nullptr);
+        // With poses refined in an incremental run's consolidation, next to the refined ones.
+        const std::vector<Eigen::Isometry3d>& mapped_poses =
+            incremental_map && !incremental_map->refined_poses_world.empty()
+                ? incremental_map->refined_poses_world
+                : odometry->poses();
+        score_heldout(
+            out / "mesh.ply",
+            selected.with_poses(heldout_poses_local_to_estimate(selected, split, mapped_poses)),
+            split, opt.holdout_every, config.preprocess, json, "heldout_local",
+            deskew ? &config.deskew : nullptr);
     }
     if (appearance_json.contains("appearance")) {
         json["appearance"] = appearance_json["appearance"];

@@ -39,8 +39,23 @@ def test_batch_parity(shine_cli, small_sequence, scans, batch_map, tmp_path):
 def test_incremental_parity(shine_cli, small_sequence, scans, tmp_path):
     cli_map(shine_cli, small_sequence, tmp_path / "cli", "--mode", "incremental")
     nmap = shinevdb.NeuralMap(config={"run": FAST_CONFIG["run"]}, threads=THREADS)
+    poses = []
     for points, pose, _ in shinevdb.read_sequence(small_sequence):
         nmap.integrate(points, pose)
-    nmap.consolidate(progress=False)  # what the CLI does at the end of the sequence
+        poses.append(pose)
+    # What the CLI does at the end of the sequence, the kept scans' poses refined with it.
+    done = nmap.consolidate(progress=False)
     nmap.write_products(tmp_path / "py")
     assert_same_products(tmp_path / "cli", tmp_path / "py", scans)
+    corrections = done["pose_corrections"]
+    assert corrections.shape == (len(poses), 4, 4)
+    assert len(done["refinement"]) == 4
+    cli_refined = np.loadtxt(tmp_path / "cli" / "poses_refined.txt").reshape(-1, 3, 4)
+    for k, pose in enumerate(poses):
+        np.testing.assert_allclose((corrections[k] @ pose)[:3], cli_refined[k], atol=1e-6)
+    # Refinement off: no corrections, as `shine map --no-refine`.
+    plain = shinevdb.NeuralMap(config={"run": FAST_CONFIG["run"],
+                                       "refine": {"in_consolidation": False}}, threads=THREADS)
+    for points, pose, _ in shinevdb.read_sequence(small_sequence):
+        plain.integrate(points, pose)
+    assert plain.consolidate(steps=10, progress=False)["pose_corrections"].shape == (0, 4, 4)

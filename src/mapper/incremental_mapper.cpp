@@ -573,6 +573,27 @@ void IncrementalMapper::sync_replay_rays(std::size_t changed_scans) {
                  static_cast<std::size_t>(config_.incremental.replay_frames), changed_scans);
 }
 
+PoseRefinementConfig IncrementalMapper::refinement() const {
+    return config_.refine.at_leaf(config_.octree.leaf_size_m, config_.preprocess.min_range_m,
+                                  config_.preprocess.max_range_m);
+}
+
+void IncrementalMapper::move_kept_scans(const std::vector<Eigen::Isometry3d>& corrections) {
+    const auto move = [](ScanInMap& scan, const Eigen::Isometry3f& T) {
+        scan.origin_map = T * scan.origin_map;
+        for (Eigen::Vector3f& p : scan.points_map) p = T * p;
+        for (Eigen::Vector3f& o : scan.point_origins_map) o = T * o;
+    };
+    for (std::size_t k = 0; k < corrections.size(); ++k) {
+        const Eigen::Isometry3f T = corrections[k].cast<float>();
+        const std::size_t w = window_.size() - corrections.size() + k;
+        move(window_[w], T);
+        if (!window_members_.empty()) move(window_members_[w], T);
+        for (Eigen::Vector3f& n : window_normals_[w]) n = T.linear() * n;
+    }
+    replay_.clear();
+}
+
 RaySet IncrementalMapper::kept_scans_every_point() const {
     RaySet rays;
     const std::size_t kept = std::min<std::size_t>(
@@ -625,7 +646,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan_untrained(const Scan& s
 }
 
 const ConsolidationStats& IncrementalMapper::consolidate(
-    int steps, const std::function<void(int, int)>& progress) {
+    int steps, const std::function<void(int, int)>& progress, const PoseRefinementConfig* refine) {
     require_training_state("consolidate");
     if (steps < 0) {
         throw ConfigError("consolidation steps must be >= 0, got " + std::to_string(steps));
@@ -644,7 +665,15 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     const RaySet* kept_rays = &every_point;
     std::size_t ray_begin = 0;
     std::size_t kept_scans = 0;
-    if (window_members_.empty()) {
+    const std::size_t replayed = static_cast<std::size_t>(config_.incremental.replay_frames);
+    const bool refining = refine && refine->rounds > 0 && std::min(window_.size(), replayed) >= 3;
+    if (window_members_.empty() && refining) {
+        // The rounds move the rays: a set of the kept scans of its own, assembled afresh.
+        ReplayRays kept;
+        kept.sync(window_, window_normals_, window_first_serial_, replayed, replayed);
+        every_point = kept.rays();
+        kept_scans = every_point.num_scans();
+    } else if (window_members_.empty()) {
         sync_replay_rays(0);  // after a resume at the end of the sequence: assembled here
         kept_rays = &replay_.rays();
         ray_begin = replay_.begin_ray();
@@ -686,14 +715,46 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     ImportanceWeights old_rows;
     if (start_rows_ > 0 && importance_.enabled()) old_rows = importance_held_old_rows();
     const ImportanceWeights* regularizer = old_rows.num_rows() > 0 ? &old_rows : nullptr;
+    // Pose refinement: each kept scan's place, as a pose (its sensor's origin, the map's axes),
+    // before and after the rounds.
+    std::vector<Eigen::Isometry3d> places_before, places;
+    if (refining) {
+        for (std::uint32_t k = 0; k < every_point.num_scans(); ++k) {
+            Eigen::Isometry3d place = Eigen::Isometry3d::Identity();
+            place.translation() = every_point.origin_of_scan(k).cast<double>();
+            places_before.push_back(place);
+        }
+        places = places_before;
+    }
+    const auto run_rounds = [&](int step) {
+        while (refining && static_cast<int>(consolidation_.refinement.size()) < refine->rounds &&
+               refine->round_step(static_cast<int>(consolidation_.refinement.size()), steps) <=
+                   step) {
+            PoseRefinementRound round;
+            std::vector<Eigen::Isometry3d> refined =
+                refine_scan_poses(*sdf_, every_point, places, *refine,
+                                  static_cast<int>(consolidation_.refinement.size()), &round);
+            move_scans(every_point, places, refined);
+            places = std::move(refined);
+            round.step = step;
+            consolidation_.refinement.push_back(round);
+        }
+    };
     TrainStepStats last;
     for (int it = 0; it < steps; ++it) {
+        run_rounds(it);
         const double ratio = cosine_decay_ratio(it, steps, final_ratio);
         trainer_->set_feature_learning_rate(static_cast<float>(lr0 * ratio));
         // No focus: every kept scan weighs the same, as in batch mode; no regulariser but the
         // old map's above.
         last = trainer_->step(rays, ray_begin, rays.num_rays(), iteration_++, regularizer);
         if (progress) progress(it + 1, steps);
+    }
+    if (refining) {
+        for (std::size_t k = 0; k < places.size(); ++k) {
+            consolidation_.corrections_map.push_back(places[k] * places_before[k].inverse());
+        }
+        move_kept_scans(consolidation_.corrections_map);
     }
     trainer_->set_surface_band_m(config_.sampling.surface_band_m);
     trainer_->set_free_samples_and_batch_size(scans_sampling.free_samples,

@@ -169,6 +169,7 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
                                    result.deskew);
             }
             result.mapper->replay_scan(scan);
+            result.mapper_scans.push_back(i);
             if (result.odometry) result.odometry->remember_scan(scan);
             progress.update(i + 1);
         }
@@ -209,6 +210,7 @@ void catch_up_deferred(const ScanSequence& sequence, const MapperConfig& config,
                                result.deskew);
         }
         stages += result.mapper->add_scan_untrained(scan).stages;
+        result.mapper_scans.push_back(i);
         progress.update(++done);
     }
     result.keyframes->counts().caught_up += result.deferred.size();
@@ -219,6 +221,30 @@ void catch_up_deferred(const ScanSequence& sequence, const MapperConfig& config,
     std::snprintf(detail, sizeof(detail), "%zu deferred scans, %.2f s", done,
                   result.catch_up_seconds);
     progress.finish(detail);
+}
+/// Every scan's pose after a consolidation that refined the kept scans' poses: the kept scans
+/// (the last of result.mapper_scans) corrected, T_world_new = T_world_map C T_map_world T_world,
+/// the others as mapped.
+std::vector<Eigen::Isometry3d> refined_after_consolidation(const ScanSequence& sequence,
+                                                           const IncrementalSequenceMap& result) {
+    std::vector<Eigen::Isometry3d> poses(sequence.size());
+    for (std::size_t i = 0; i < sequence.size(); ++i) {
+        poses[i] = result.odometry ? result.odometry->poses()[i] : sequence.pose(i);
+    }
+    const std::vector<Eigen::Isometry3d>& corrections =
+        result.mapper->consolidation().corrections_map;
+    if (corrections.size() > result.mapper_scans.size()) {
+        throw Error("pose refinement: " + std::to_string(corrections.size()) + " corrections for " +
+                    std::to_string(result.mapper_scans.size()) + " integrated scans");
+    }
+    Eigen::Isometry3d T_world_map = Eigen::Isometry3d::Identity();
+    T_world_map.translation() = result.mapper->sdf().origin_world_m;
+    const std::size_t first = result.mapper_scans.size() - corrections.size();
+    for (std::size_t k = 0; k < corrections.size(); ++k) {
+        const std::size_t i = result.mapper_scans[first + k];
+        poses.at(i) = T_world_map * corrections[k] * T_world_map.inverse() * poses.at(i);
+    }
+    return poses;
 }
 }  // namespace
 
@@ -418,6 +444,7 @@ IncrementalSequenceMap map_sequence_incremental(
                 // Trained in the background; this thread goes on with the next scan.
                 result.odometry->remember_scan(scan);
                 trainer->submit(i, std::move(scan), training_delay);
+                result.mapper_scans.push_back(i);
                 prepare_ahead(i + 1);
                 char detail[128];
                 std::snprintf(detail, sizeof(detail), "pose %s (%.2f s), training",
@@ -429,6 +456,7 @@ IncrementalSequenceMap map_sequence_incremental(
                 // while the map trains on it: they share nothing, and the next scan's
                 // registration to the map (finish) waits for both.
                 const IncrementalFrameStats* mapped = nullptr;
+                result.mapper_scans.push_back(i);
                 if (result.odometry) {
                     tbb::parallel_invoke([&] { mapped = &mapper.add_scan(scan); },
                                          [&] {
@@ -539,13 +567,21 @@ IncrementalSequenceMap map_sequence_incremental(
         // frame's checkpoint.
         Progress progress(progress_tag.empty() ? "consolidate" : "consolidate " + progress_tag,
                           static_cast<std::size_t>(consolidation_steps));
+        const PoseRefinementConfig refine = mapper.refinement();
+        // With estimated poses only when set (refine.in_consolidation's comment).
+        const bool refining = refine.in_consolidation && refine.rounds > 0 &&
+                              (!result.odometry || config.is_set("refine.in_consolidation"));
         const ConsolidationStats& done = mapper.consolidate(
             consolidation_steps,
-            [&](int step, int) { progress.update(static_cast<std::size_t>(step)); });
+            [&](int step, int) { progress.update(static_cast<std::size_t>(step)); },
+            refining ? &refine : nullptr);
         char detail[96];
         std::snprintf(detail, sizeof(detail), "%zu scans, %.2f s, bce %.4f", done.scans,
                       done.seconds, done.bce);
         progress.finish(detail);
+        if (!done.corrections_map.empty()) {
+            result.refined_poses_world = refined_after_consolidation(sequence, result);
+        }
     }
     // The map is final: its training state's memory goes to the products.
     mapper.release_training_state();

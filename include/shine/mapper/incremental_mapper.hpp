@@ -37,6 +37,7 @@
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/pose_refinement.hpp"
 #include "shine/mapper/replay_rays.hpp"
 #include "shine/mapper/scan_in_map.hpp"
 #include "shine/mapper/stage_profile.hpp"
@@ -94,6 +95,12 @@ struct ConsolidationStats {
     /// (IncrementalMapper::vote_among_kept_scans), and the seconds the votes took.
     std::size_t dynamic_dropped = 0;
     double vote_seconds = 0.0;
+    /// With pose refinement (consolidate()'s `refine`): what each round did, and each kept
+    /// scan's correction in the map frame (T_new_old: the scan's rays were moved by it), oldest
+    /// first. The kept scans are the last corrections_map.size() scans the mapper integrated
+    /// (add_scan, add_scan_untrained, replay_scan, in their order). Empty without refinement.
+    std::vector<PoseRefinementRound> refinement;
+    std::vector<Eigen::Isometry3d> corrections_map;
 };
 
 /// The decoder incremental mode uses for `config`: config.incremental.decoder_weights resolved
@@ -165,10 +172,23 @@ class IncrementalMapper {
     /// (every row's Adam state is dropped). `progress(done, total)` is called after each step when
     /// given. add_scan() may follow (the next scan's anchors are the consolidated rows); the
     /// frames' statistics are unchanged. Throws ConfigError for negative `steps`.
+    ///
+    /// With `refine` (rounds > 0, lengths for this map's leaf: PoseRefinementConfig::at_leaf) and
+    /// at least 3 kept scans, the kept scans' poses are refined with the map as batch mode
+    /// refines them (pose_refinement.hpp), in place: before step refine->round_step(r, steps) of
+    /// round r every kept scan is registered to the map as it stands, from where its rays are
+    /// (the sensor's origin, map axes), the corrections gauge-aligned to the kept scans' places
+    /// before the round, and its rays moved; the steps go on with the moved rays. The kept scans
+    /// in the window move with them (a later add_scan() replays them where they were refined).
+    /// The consolidation's statistics give the rounds and each kept scan's correction.
     const ConsolidationStats& consolidate(int steps,
-                                          const std::function<void(int, int)>& progress = {});
+                                          const std::function<void(int, int)>& progress = {},
+                                          const PoseRefinementConfig* refine = nullptr);
     /// The last consolidate()'s statistics (steps 0 before).
     const ConsolidationStats& consolidation() const { return consolidation_; }
+    /// The configuration's pose refinement (section `refine`) at this map's leaf and ranges;
+    /// consolidate() takes it where refine.in_consolidation and refine.rounds say so.
+    PoseRefinementConfig refinement() const;
 
     /// The state after the last add_scan() (parameters, optimiser, importance, iteration, frame
     /// statistics) for a checkpoint. load_state() checks that the replayed scans match the
@@ -240,6 +260,10 @@ class IncrementalMapper {
     /// anchors are the old map's values and not where the new scans' steps moved them, one
     /// re-anchored scan after another. No-op without start_from().
     void restore_old_rows();
+    /// Moves the window's last corrections.size() scans (points, origins, normals, and their
+    /// every-point members) by corrections[k] (map frame, T_new_old), and forgets the training
+    /// rays so that the next sync assembles them from the moved scans.
+    void move_kept_scans(const std::vector<Eigen::Isometry3d>& corrections);
     /// Importance weights over the map's rows with the rows start_from() brought (below
     /// start_rows_) at the cap Omega_m and the others at 0.
     ImportanceWeights importance_held_old_rows() const;

@@ -62,6 +62,13 @@ struct IncrementalSequenceMap {
     /// Wall-clock seconds of each scan this run went through, from its load to the end of its
     /// mapping (odometry, deskew and mapping included; a resumed run's replayed scans are not).
     std::vector<double> scan_wall_seconds;
+    /// The sequence index of each scan the mapper integrated, in the order it integrated them
+    /// (the scans that trained when they came, then the deferred ones caught up).
+    std::vector<std::size_t> mapper_scans;
+    /// With pose refinement in the consolidation (refine.in_consolidation): every scan's pose in
+    /// the world frame after it, the kept scans' corrected and every other scan's as it was
+    /// mapped (the sequence's, or the estimated one); empty without.
+    std::vector<Eigen::Isometry3d> refined_poses_world;
 };
 
 /// A saved map that a run continues (`shine map --from`; docs/continue.md).
