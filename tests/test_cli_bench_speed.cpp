@@ -23,8 +23,9 @@ TEST(BenchSpeedCli, AlternatesTheThreeMethodsAndReportsTimesAndRatios) {
     const fs::path data = test_dir() / "street";
     simulate_street(data, 3, 3);
     const fs::path config = test_dir() / "short.yaml";
+    // A short consolidation as well: four incremental runs' 1000 steps took most of the test.
     std::ofstream(config) << "training:\n  iterations: 20\nincremental:\n"
-                             "  iterations_per_frame: 2\n";
+                             "  iterations_per_frame: 2\n  consolidation_steps: 10\n";
     const fs::path out = test_dir() / "out";
     fs::remove_all(out);
     const CliResult r = run_shine("bench --speed '" + data.string() + "' -o '" + out.string() +

@@ -165,11 +165,13 @@ TEST(Resume, FineLeafRunsResumeWithTheirLeafDefaults) {
 
 TEST(Resume, IncrementalRunReplayingEarlierScansContinuesToTheSameMap) {
     // With incremental.replay_frames 3 the scans before the stop train again after the resume,
-    // with the normals they got when they were current.
+    // with the normals they got when they were current. (A short consolidation: the frames'
+    // replay is what the test is about.)
     const fs::path replay = test_dir() / "replay.yaml";
     std::ofstream(replay) << "incremental:\n"
                              "  iterations_per_frame: 25\n"
-                             "  replay_frames: 3\n";
+                             "  replay_frames: 3\n"
+                             "  consolidation_steps: 100\n";
     const auto args = [&](const fs::path& out, const std::string& extra) {
         return "map '" + street().string() + "' -o '" + out.string() + "' -c '" + replay.string() +
                "' -q --mode incremental --threads 2 " + extra;
