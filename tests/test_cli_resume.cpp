@@ -147,10 +147,9 @@ TEST(Resume, FineLeafRunsResumeWithTheirLeafDefaults) {
         const fs::path out = test_dir() / ("out_fine_" + mode);
         fs::remove_all(out);
         expect_stopped_without_products(
-            run(map_args(out,
-                         extra + (mode == "batch" ? " --interrupt-after 103"
-                                                  : " --interrupt-after 2"),
-                         fine_config())),
+            run(map_args(
+                out, extra + (mode == "batch" ? " --interrupt-after 103" : " --interrupt-after 2"),
+                fine_config())),
             out);
         const CliResult r = run("map --resume '" + out.string() + "' -q --threads 2");
         ASSERT_EQ(r.exit_code, 0) << r.output;
