@@ -25,10 +25,11 @@
 // never deskews.
 //
 // Times from the azimuth (deskew.azimuth_times): `auto` (the default) lets the sweep test decide
-// whether a sequence of scans without time fields is skewed and which way its beams turn, in
-// batch mode with given poses refined (`shine map` applies it there only: at given poses, fitted by
-// an odometry to the skewed scans, deskewing lost 0.7-0.8 points of held-out rays on the real
-// KITTI-360 drive, with refined poses it gained 0.8; docs/field.md); `on` times them with
+// whether a sequence of scans without time fields is skewed and which way its beams turn, where
+// given poses are refined (`shine map` applies it there only: batch mode, and incremental mode,
+// whose consolidation refines; at given poses, fitted by an odometry to the skewed scans,
+// deskewing lost 0.7-0.8 points of held-out rays on the real KITTI-360 drive, with refined poses
+// it gained 0.8-0.9 in either mode; docs/field.md); `on` times them with
 // deskew.sweep_direction / sweep_start_deg / pose_azimuth_deg as configured, in every mode;
 // `off` never.
 #pragma once
