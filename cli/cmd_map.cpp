@@ -331,15 +331,18 @@ nlohmann::json deskew_to_json(const DeskewConfig& config, const DeskewStats& sta
 /// Pose refinement's products: every selected scan's refined pose (the mapped scans' from
 /// `refined_mapped`, the held-out ones from the corrections of the mapped scans around them,
 /// never from their own points) written to poses_refined.txt and poses_refined_tum.txt, and
-/// `given` (the poses the map started from, line by line with it: `shine localize` reports
-/// poses in their frame, geometry/pose_frame_correction.hpp) to poses_given.txt. `json` gets
-/// the rounds, the largest move from `given` and the file. Returns the refined poses.
+/// the poses the map started from to poses_given.txt, line by line with it (`shine localize`
+/// reports poses in their frame, geometry/pose_frame_correction.hpp): the data's, or with an
+/// `odometry` its estimates (held-out scans placed next to them). `json` gets the rounds, the
+/// largest move from the given poses and the file. Returns the refined poses.
 std::vector<Eigen::Isometry3d> write_refined_poses(
     const fs::path& out, const ScanSequence& selected, const HoldoutSplit& split,
-    const std::vector<Eigen::Isometry3d>& given,
-    const std::vector<Eigen::Isometry3d>& refined_mapped,
+    const ScanOdometry* odometry, const std::vector<Eigen::Isometry3d>& refined_mapped,
     const std::vector<PoseRefinementRound>& rounds, const MapperConfig& config,
     nlohmann::json& json) {
+    std::vector<Eigen::Isometry3d> given(selected.size());
+    for (std::size_t i = 0; i < selected.size(); ++i) given[i] = selected.pose(i);
+    if (odometry) given = heldout_poses_local_to_estimate(selected, split, odometry->poses());
     const std::vector<Eigen::Isometry3d> refined =
         poses_with_corrections(selected, split.mapped, given, refined_mapped);
     write_kitti_poses(out / "poses_refined.txt", refined);
@@ -659,7 +662,7 @@ int run_map(const MapOptions& given_options) {
     // deskewed scans; at given poses, fitted to the skewed scans, deskewing lost points on the
     // real drive, and with estimated poses it lost 0.3-0.9 points: docs/field.md).
     const bool refining_given_poses =
-        config.refine.rounds > 0 && (opt.mode == "batch" || config.refine.in_consolidation);
+        opt.mode == "batch" ? config.refine.rounds > 0 : config.refines_in_consolidation(false);
     if (config.deskew.azimuth_times != DeskewMode::kAuto ||
         (refining_given_poses && !estimate_option && selected.has_poses())) {
         selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
@@ -837,16 +840,9 @@ int run_map(const MapOptions& given_options) {
     nlohmann::json refine_json;
     std::vector<Eigen::Isometry3d> refined;  // with pose refinement: every selected scan's pose
     if (batch_map && !batch_map->refinement.empty()) {
-        // The poses the map started from: the data's, or with estimated poses the estimates
-        // (held-out scans placed next to them).
-        std::vector<Eigen::Isometry3d> given(selected.size());
-        for (std::size_t i = 0; i < selected.size(); ++i) given[i] = selected.pose(i);
-        if (odometry_run) {
-            given =
-                heldout_poses_local_to_estimate(selected, split, odometry_run->odometry->poses());
-        }
-        refined = write_refined_poses(out, selected, split, given, batch_map->refined_poses_world,
-                                      batch_map->refinement, config, refine_json);
+        refined = write_refined_poses(
+            out, selected, split, odometry_run ? odometry_run->odometry.get() : nullptr,
+            batch_map->refined_poses_world, batch_map->refinement, config, refine_json);
         scored = selected.with_poses(refined);
         refine_json["seconds"] = batch_map->refine_seconds;
         refine_json["warm_start"] = {
@@ -869,17 +865,11 @@ int run_map(const MapOptions& given_options) {
         // mapped at (the data's or the estimates) corrected, held-out scans as in batch mode.
         // With estimated poses the held-out scans stay scored at the data's poses ("heldout",
         // the estimate's drift counted) and next to the refined estimate ("heldout_local").
-        std::vector<Eigen::Isometry3d> given(selected.size());
-        for (std::size_t i = 0; i < selected.size(); ++i) given[i] = selected.pose(i);
-        if (incremental_map->odometry) {
-            given = heldout_poses_local_to_estimate(selected, split,
-                                                    incremental_map->odometry->poses());
-        }
         const std::vector<PoseRefinementRound>& rounds =
             incremental_map->mapper->consolidation().refinement;
         refined =
-            write_refined_poses(out, selected, split, given, incremental_map->refined_poses_world,
-                                rounds, config, refine_json);
+            write_refined_poses(out, selected, split, incremental_map->odometry.get(),
+                                incremental_map->refined_poses_world, rounds, config, refine_json);
         if (!incremental_map->odometry) scored = selected.with_poses(refined);
         refine_json["in_consolidation"] = true;
         refine_json["kept_scans"] = incremental_map->mapper->consolidation().scans;

@@ -201,8 +201,8 @@ class NeuralMap {
             Progress line("consolidate", static_cast<std::size_t>(n), progress);
             // The kept scans' poses refined as `shine map --mode incremental` refines them at
             // given poses (refine.in_consolidation).
-            const PoseRefinementConfig refine = incremental_->refinement();
-            const bool refining = refine.in_consolidation && refine.rounds > 0;
+            const PoseRefinementConfig refine = incremental_->config().scaled_refinement();
+            const bool refining = incremental_->config().refines_in_consolidation(false);
             incremental_->consolidate(
                 n, [&](int done, int) { line.update(static_cast<std::size_t>(done)); },
                 refining ? &refine : nullptr);

@@ -351,10 +351,7 @@ std::size_t BatchMapper::warm_start(const NeuralSdf& source, int first_step) {
     return copied;
 }
 
-PoseRefinementConfig BatchMapper::refinement() const {
-    return config_.refine.at_leaf(config_.octree.leaf_size_m, config_.preprocess.min_range_m,
-                                  config_.preprocess.max_range_m);
-}
+PoseRefinementConfig BatchMapper::refinement() const { return config_.scaled_refinement(); }
 
 int BatchMapper::refinement_steps() const {
     const PoseRefinementConfig refine = refinement();

@@ -573,11 +573,6 @@ void IncrementalMapper::sync_replay_rays(std::size_t changed_scans) {
                  static_cast<std::size_t>(config_.incremental.replay_frames), changed_scans);
 }
 
-PoseRefinementConfig IncrementalMapper::refinement() const {
-    return config_.refine.at_leaf(config_.octree.leaf_size_m, config_.preprocess.min_range_m,
-                                  config_.preprocess.max_range_m);
-}
-
 void IncrementalMapper::move_kept_scans(const std::vector<Eigen::Isometry3d>& corrections) {
     const auto move = [](ScanInMap& scan, const Eigen::Isometry3f& T) {
         scan.origin_map = T * scan.origin_map;

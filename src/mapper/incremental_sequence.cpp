@@ -567,10 +567,8 @@ IncrementalSequenceMap map_sequence_incremental(
         // frame's checkpoint.
         Progress progress(progress_tag.empty() ? "consolidate" : "consolidate " + progress_tag,
                           static_cast<std::size_t>(consolidation_steps));
-        const PoseRefinementConfig refine = mapper.refinement();
-        // With estimated poses only when set (refine.in_consolidation's comment).
-        const bool refining = refine.in_consolidation && refine.rounds > 0 &&
-                              (!result.odometry || config.is_set("refine.in_consolidation"));
+        const PoseRefinementConfig refine = mapper.config().scaled_refinement();
+        const bool refining = mapper.config().refines_in_consolidation(result.odometry != nullptr);
         const ConsolidationStats& done = mapper.consolidate(
             consolidation_steps,
             [&](int step, int) { progress.update(static_cast<std::size_t>(step)); },

@@ -204,10 +204,7 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
         result.refine_seconds = seconds_since(t0);
         sequence = sequence.with_poses(result.refined_poses_world);
         // The first map is reused only where it was trained at poses close to the refined ones.
-        const PoseRefinementConfig scaled =
-            refine.at_leaf(config.octree.leaf_size_m, config.preprocess.min_range_m,
-                           config.preprocess.max_range_m);
-        if (!scaled.warm_start_fits(result.refinement)) first_map.reset();
+        if (!config.scaled_refinement().warm_start_fits(result.refinement)) first_map.reset();
     }
     config.refine.rounds = 0;
     result.mapper = std::make_unique<BatchMapper>(config);

@@ -376,6 +376,15 @@ bool MapperConfig::fine_outdoor_leaf() const {
            octree.leaf_size_m < 0.75 * MapperConfig{}.octree.leaf_size_m;
 }
 
+PoseRefinementConfig MapperConfig::scaled_refinement() const {
+    return refine.at_leaf(octree.leaf_size_m, preprocess.min_range_m, preprocess.max_range_m);
+}
+
+bool MapperConfig::refines_in_consolidation(bool estimated_poses) const {
+    return refine.rounds > 0 && refine.in_consolidation &&
+           (!estimated_poses || is_set("refine.in_consolidation"));
+}
+
 ScenePreset MapperConfig::resolved_scene() const {
     if (scene == "auto") return scene_for_leaf(octree.leaf_size_m);
     if (scene == "outdoor" || scene == "indoor" || scene == "object") {

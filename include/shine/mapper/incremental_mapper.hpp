@@ -173,7 +173,7 @@ class IncrementalMapper {
     /// given. add_scan() may follow (the next scan's anchors are the consolidated rows); the
     /// frames' statistics are unchanged. Throws ConfigError for negative `steps`.
     ///
-    /// With `refine` (rounds > 0, lengths for this map's leaf: PoseRefinementConfig::at_leaf) and
+    /// With `refine` (rounds > 0, lengths for this map's leaf: MapperConfig::scaled_refinement) and
     /// at least 3 kept scans, the kept scans' poses are refined with the map as batch mode
     /// refines them (pose_refinement.hpp), in place: before step refine->round_step(r, steps) of
     /// round r every kept scan is registered to the map as it stands, from where its rays are
@@ -186,9 +186,6 @@ class IncrementalMapper {
                                           const PoseRefinementConfig* refine = nullptr);
     /// The last consolidate()'s statistics (steps 0 before).
     const ConsolidationStats& consolidation() const { return consolidation_; }
-    /// The configuration's pose refinement (section `refine`) at this map's leaf and ranges;
-    /// consolidate() takes it where refine.in_consolidation and refine.rounds say so.
-    PoseRefinementConfig refinement() const;
 
     /// The state after the last add_scan() (parameters, optimiser, importance, iteration, frame
     /// statistics) for a checkpoint. load_state() checks that the replayed scans match the

@@ -125,6 +125,13 @@ struct MapperConfig {
     /// every point and bakes in the level-1 cells (apply_batch_defaults()) and incremental mode's
     /// built-in decoder is the one pretrained at 0.1 m (load_incremental_decoder()).
     bool fine_outdoor_leaf() const;
+    /// `refine` at this configuration's leaf and range limits (PoseRefinementConfig::at_leaf):
+    /// what both mappers register with.
+    PoseRefinementConfig scaled_refinement() const;
+    /// Whether incremental mode's consolidation refines the kept scans' poses: refine.rounds > 0
+    /// and refine.in_consolidation, which with `estimated_poses` (odometry) counts only when the
+    /// user set it (refine.in_consolidation's comment).
+    bool refines_in_consolidation(bool estimated_poses) const;
 
     /// Batch mode's samples per step, learning rate and steps. With `iterations` and
     /// trainer.batch_size both automatic (the defaults), the automatic schedule: 32768 samples
