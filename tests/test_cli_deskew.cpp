@@ -114,10 +114,14 @@ TEST(DeskewCli, GivenPosesDeskewWithTheFlagAndSayItInStats) {
 }
 
 TEST(DeskewCli, EstimatedPosesDeskewOnTheirOwnWhenScansCarryTimes) {
+    // The sweeps and their deskew are what is checked here, not the map: a short consolidation.
+    const fs::path short_config = test_dir() / "short_consolidation.yaml";
+    std::ofstream(short_config) << "incremental: {consolidation_steps: 100}\n";
+    const std::string incremental =
+        "--mode incremental --poses estimate --no-eval -c '" + short_config.string() + "'";
     const fs::path out = test_dir() / "estimated";
     fs::remove_all(out);
-    const CliResult r =
-        run(map_args(distorted_street(), out, "--mode incremental --poses estimate --no-eval"));
+    const CliResult r = run(map_args(distorted_street(), out, incremental));
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find("between the estimated poses"), std::string::npos) << r.output;
     const nlohmann::json stats = read_json(out / "stats.json");
@@ -140,8 +144,7 @@ TEST(DeskewCli, EstimatedPosesDeskewOnTheirOwnWhenScansCarryTimes) {
     const fs::path resumed = test_dir() / "estimated_resumed";
     fs::remove_all(resumed);
     const CliResult stopped =
-        run(map_args(distorted_street(), resumed,
-                     "--mode incremental --poses estimate --no-eval --interrupt-after 3"));
+        run(map_args(distorted_street(), resumed, incremental + " --interrupt-after 3"));
     ASSERT_EQ(stopped.exit_code, 130) << stopped.output;
     const CliResult again = run("map --resume '" + resumed.string() + "' -q --threads 2");
     ASSERT_EQ(again.exit_code, 0) << again.output;
@@ -152,7 +155,8 @@ TEST(DeskewCli, EstimatedPosesDeskewOnTheirOwnWhenScansCarryTimes) {
     const fs::path off = test_dir() / "estimated_no_sweep";
     fs::remove_all(off);
     const fs::path config = test_dir() / "no_sweep.yaml";
-    std::ofstream(config) << "odometry: {estimate_sweep: false}\n";
+    std::ofstream(config) << "odometry: {estimate_sweep: false}\n"
+                             "incremental: {consolidation_steps: 100}\n";
     const CliResult r_off =
         run(map_args(distorted_street(), off,
                      "--mode incremental --poses estimate --no-eval -c '" + config.string() + "'"));
