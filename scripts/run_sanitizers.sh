@@ -19,7 +19,10 @@ cd "$(dirname "$0")/.."
 jobs="${SHINE_BUILD_JOBS:-$(nproc)}"
 exclude="${SHINE_ASAN_EXCLUDE:-^blender_}"
 
+# -O1 -g1 (line tables): reports name the file and line as with -O2 -g, and the reader sources
+# compile 2.5 times faster (an io unity batch: 43 s against 110 s).
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSHINE_BUILD_TESTS=ON \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
     -DCMAKE_CXX_FLAGS="-fsanitize=address,undefined -fno-omit-frame-pointer" \
     -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" >/dev/null
 readers_only=0
@@ -44,10 +47,31 @@ export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1:suppre
 # Leaks inside OpenVDB's reader on damaged files (not ours) are listed in lsan_suppressions.txt.
 export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$PWD/fuzz/lsan_suppressions.txt:print_suppressions=0}"
 if [ "$readers_only" -eq 1 ]; then
+    # One test program per core at a time, each into its own log; a failing one's log is shown.
+    mkdir -p build-asan/logs
+    running=0
+    for t in "${targets[@]}"; do
+        if [ "$running" -ge "$jobs" ]; then
+            wait -n || true
+            running=$((running - 1))
+        fi
+        (
+            if "build-asan/tests/$t" --gtest_brief=1 >"build-asan/logs/$t.log" 2>&1; then
+                echo ok >"build-asan/logs/$t.status"
+            else
+                echo FAILED >"build-asan/logs/$t.status"
+            fi
+        ) &
+        running=$((running + 1))
+    done
+    wait || true
     failed=()
     for t in "${targets[@]}"; do
-        echo "run_sanitizers: $t"
-        "build-asan/tests/$t" --gtest_brief=1 || failed+=("$t")
+        if [ "$(cat "build-asan/logs/$t.status" 2>/dev/null)" != ok ]; then
+            failed+=("$t")
+            echo "run_sanitizers: $t failed:"
+            cat "build-asan/logs/$t.log"
+        fi
     done
     if [ ${#failed[@]} -gt 0 ]; then
         echo "run_sanitizers: ${failed[*]} failed" >&2
