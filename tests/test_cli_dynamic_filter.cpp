@@ -115,8 +115,8 @@ TEST(CliDynamicFilter, MovingObjectsGoWhereNoRaySeesThrough) {
     const CliResult sim =
         run_shine("simulate -o '" + data.string() + "' --movers 20 --no-progress", dir);
     ASSERT_EQ(sim.exit_code, 0) << sim.output;
-    // At the simulator's exact poses, without pose refinement (its first phase would double
-    // the runs and move nothing).
+    // At the simulator's exact poses, without pose refinement (its first phase would train a
+    // map of its own for each run and move nothing).
     const GhostRun votes =
         map_and_score(data, dir, "on", "_votes",
                       "dynamic:\n  motion: false\nrefine:\n  rounds: 0\n", "batch", "");
