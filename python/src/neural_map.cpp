@@ -228,15 +228,11 @@ class NeuralMap {
         // first): a kept scan's refined pose is correction @ the pose it was integrated at.
         Eigen::Isometry3d T_world_map = Eigen::Isometry3d::Identity();
         T_world_map.translation() = incremental_->sdf().origin_world_m;
-        std::vector<double> corrections;
+        std::vector<Eigen::Isometry3d> corrections_world;
         for (const Eigen::Isometry3d& C_map : c.corrections_map) {
-            const Eigen::Matrix4d C = (T_world_map * C_map * T_world_map.inverse()).matrix();
-            for (int r = 0; r < 4; ++r) {
-                for (int col = 0; col < 4; ++col) corrections.push_back(C(r, col));
-            }
+            corrections_world.push_back(T_world_map * C_map * T_world_map.inverse());
         }
-        const auto kept = static_cast<py::ssize_t>(c.corrections_map.size());
-        out["pose_corrections"] = take_vector(std::move(corrections), {kept, 4, 4});
+        out["pose_corrections"] = poses_to_array(corrections_world);
         py::list rounds;
         for (const PoseRefinementRound& r : c.refinement) {
             py::dict round;

@@ -165,6 +165,19 @@ py::array_t<double> pose_to_array(const Eigen::Isometry3d& pose) {
     return out;
 }
 
+py::array_t<double> poses_to_array(const std::vector<Eigen::Isometry3d>& poses) {
+    py::array_t<double> out(
+        {static_cast<py::ssize_t>(poses.size()), py::ssize_t{4}, py::ssize_t{4}});
+    auto view = out.mutable_unchecked<3>();
+    for (std::size_t k = 0; k < poses.size(); ++k) {
+        const Eigen::Matrix4d m = poses[k].matrix();
+        for (int r = 0; r < 4; ++r) {
+            for (int c = 0; c < 4; ++c) view(static_cast<py::ssize_t>(k), r, c) = m(r, c);
+        }
+    }
+    return out;
+}
+
 py::array_t<float> take_points(std::vector<Eigen::Vector3f>&& points) {
     static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "Vector3f must be packed");
     auto* owned = new std::vector<Eigen::Vector3f>(std::move(points));

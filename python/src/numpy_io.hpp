@@ -38,6 +38,8 @@ std::vector<double> per_point_values(const py::handle& obj, std::size_t num_poin
 
 /// A (4, 4) float64 array of `pose`.
 py::array_t<double> pose_to_array(const Eigen::Isometry3d& pose);
+/// Poses as a (K, 4, 4) float64 array, in order.
+py::array_t<double> poses_to_array(const std::vector<Eigen::Isometry3d>& poses);
 
 /// The vector's storage as an array of `shape` that owns it.
 template <typename T>
