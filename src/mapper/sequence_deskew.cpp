@@ -64,19 +64,18 @@ double deskew_in_place(Scan& scan, const Eigen::Isometry3d& T_prev_cur, double i
 double deskew_in_place(Scan& scan, const Eigen::Isometry3d& T_prev_cur, double interval_prev_s,
                        const Eigen::Isometry3d& T_cur_next, double interval_next_s,
                        DeskewStats& stats) {
+    // The sensor's position at each point's time, moved the same way: the points' ray origins.
+    std::vector<Eigen::Vector3f> origins;
     std::vector<Eigen::Vector3f> moved =
         deskew_scan_between(scan.points_sensor, scan.point_time_s, T_prev_cur, interval_prev_s,
-                            T_cur_next, interval_next_s);
+                            T_cur_next, interval_next_s, &origins);
     double max_shift_m = 0.0;
     for (std::size_t i = 0; i < moved.size(); ++i) {
         const double shift = static_cast<double>((moved[i] - scan.points_sensor[i]).norm());
         if (std::isfinite(shift)) max_shift_m = std::max(max_shift_m, shift);  // NaN stays NaN
     }
     scan.points_sensor = std::move(moved);
-    // The sensor's position at each point's time, moved the same way: the points' ray origins.
-    scan.point_origin_sensor = deskew_scan_between(
-        std::vector<Eigen::Vector3f>(scan.points_sensor.size(), Eigen::Vector3f::Zero()),
-        scan.point_time_s, T_prev_cur, interval_prev_s, T_cur_next, interval_next_s);
+    scan.point_origin_sensor = std::move(origins);
     if (stats.scans_deskewed == 0) stats.time_format = scan.point_time_format;
     ++stats.scans_deskewed;
     stats.max_shift_m = std::max(stats.max_shift_m, max_shift_m);

@@ -27,16 +27,19 @@ void check_interval(double interval_s) {
     }
 }
 
-/// Each point moved by exp(t_i * velocity), velocity_before for t_i < 0, velocity_after else.
+/// Each point moved by exp(t_i * velocity), velocity_before for t_i < 0, velocity_after else;
+/// with `origins`, also the sensor's position at each point's time (the origin so moved).
 std::vector<Eigen::Vector3f> move_points(const std::vector<Eigen::Vector3f>& points_sensor,
                                          const std::vector<double>& times_s,
                                          const Vector6d& velocity_before,
-                                         const Vector6d& velocity_after) {
+                                         const Vector6d& velocity_after,
+                                         std::vector<Eigen::Vector3f>* origins = nullptr) {
     if (points_sensor.size() != times_s.size()) {
         throw DataError("deskew: " + std::to_string(points_sensor.size()) + " points but " +
                         std::to_string(times_s.size()) + " point times; give one time per point");
     }
     std::vector<Eigen::Vector3f> out(points_sensor.size());
+    if (origins) origins->resize(points_sensor.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_sensor.size(), 1024),
                       [&](const tbb::blocked_range<std::size_t>& range) {
                           for (std::size_t i = range.begin(); i != range.end(); ++i) {
@@ -44,6 +47,9 @@ std::vector<Eigen::Vector3f> move_points(const std::vector<Eigen::Vector3f>& poi
                                   times_s[i] < 0.0 ? velocity_before : velocity_after;
                               const Eigen::Isometry3d T_ref_t = se3_exp(times_s[i] * velocity);
                               out[i] = (T_ref_t * points_sensor[i].cast<double>()).cast<float>();
+                              if (origins) {
+                                  (*origins)[i] = (T_ref_t * Eigen::Vector3d::Zero()).cast<float>();
+                              }
                           }
                       });
     return out;
@@ -68,11 +74,12 @@ std::vector<Eigen::Vector3f> deskew_scan_between(const std::vector<Eigen::Vector
                                                  const Eigen::Isometry3d& T_prev_cur,
                                                  double interval_prev_s,
                                                  const Eigen::Isometry3d& T_cur_next,
-                                                 double interval_next_s) {
+                                                 double interval_next_s,
+                                                 std::vector<Eigen::Vector3f>* origins_sensor) {
     check_interval(interval_prev_s);
     check_interval(interval_next_s);
     return move_points(points_sensor, times_s, se3_log(T_prev_cur) / interval_prev_s,
-                       se3_log(T_cur_next) / interval_next_s);
+                       se3_log(T_cur_next) / interval_next_s, origins_sensor);
 }
 
 }  // namespace shine

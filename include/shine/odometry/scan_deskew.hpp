@@ -36,13 +36,14 @@ std::vector<Eigen::Vector3f> deskew_scan(const std::vector<Eigen::Vector3f>& poi
 /// moves at the velocity of T_prev_cur over interval_prev_s, one measured after it (t >= 0) at
 /// that of T_cur_next (the motion to the next scan's pose) over interval_next_s. With given poses
 /// this is the motion between the two poses around each point's time, which on a curving drive
-/// is closer than one velocity for the whole sweep (docs/odometry.md). Throws as deskew_scan.
-std::vector<Eigen::Vector3f> deskew_scan_between(const std::vector<Eigen::Vector3f>& points_sensor,
-                                                 const std::vector<double>& times_s,
-                                                 const Eigen::Isometry3d& T_prev_cur,
-                                                 double interval_prev_s,
-                                                 const Eigen::Isometry3d& T_cur_next,
-                                                 double interval_next_s);
+/// is closer than one velocity for the whole sweep (docs/odometry.md). With `origins_sensor`,
+/// it also receives where the sensor was at each point's time (the ray origins of the deskewed
+/// points), from the same pose as its point. Throws as deskew_scan.
+std::vector<Eigen::Vector3f> deskew_scan_between(
+    const std::vector<Eigen::Vector3f>& points_sensor, const std::vector<double>& times_s,
+    const Eigen::Isometry3d& T_prev_cur, double interval_prev_s,
+    const Eigen::Isometry3d& T_cur_next, double interval_next_s,
+    std::vector<Eigen::Vector3f>* origins_sensor = nullptr);
 
 /// The sensor's pose at time `time_s` (relative to the reference) in the reference sensor frame:
 /// exp((time_s / interval_s) log T_prev_cur).
