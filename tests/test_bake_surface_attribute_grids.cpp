@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <random>
 
 #include "shine/bake/surface_attribute_grids.hpp"
@@ -78,6 +79,39 @@ TEST(SurfaceAttributeGrids, VoxelsNextToVerticesTakeTheirMeanValues) {
         EXPECT_EQ(*it, expected) << it.getCoord();
         EXPECT_NEAR(intensity_at.getValue(it.getCoord()), height_m / kRadiusM, 0.1);
     }
+}
+
+// The grids are built in parallel by leaf; each voxel's sum must still run over its vertices in
+// vertex order, as the definition's one pass does: the same bits, voxel for voxel.
+TEST(SurfaceAttributeGrids, ValuesAreTheMeansOfOnePassOverTheVerticesBitForBit) {
+    const auto level_set = sphere();
+    const SphereVertices v = sphere_vertices();
+    std::map<std::array<int, 3>, openvdb::Vec4f> sums;  // the definition, serially
+    auto level = level_set->getConstAccessor();
+    for (std::size_t i = 0; i < v.points.size(); ++i) {
+        if (!std::isfinite(v.intensity[i])) continue;
+        const Eigen::Vector3f& p = v.points[i];
+        const openvdb::Coord base = openvdb::Coord::floor(
+            level_set->transform().worldToIndex(openvdb::Vec3d(p.x(), p.y(), p.z())));
+        for (int corner = 0; corner < 8; ++corner) {
+            const openvdb::Coord ijk =
+                base.offsetBy(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+            if (!level.isValueOn(ijk)) continue;
+            openvdb::Vec4f& sum = sums[{ijk.x(), ijk.y(), ijk.z()}];
+            sum = sum + openvdb::Vec4f(v.intensity[i], 0.0f, 0.0f, 1.0f);
+        }
+    }
+    const auto intensity = intensity_grid_from_vertices(*level_set, v.points, v.intensity);
+    ASSERT_EQ(intensity->activeVoxelCount(), sums.size());
+    auto at = intensity->getConstAccessor();
+    std::size_t negative = 0;
+    for (const auto& [ijk, sum] : sums) {
+        const openvdb::Coord c(ijk[0], ijk[1], ijk[2]);
+        ASSERT_TRUE(at.isValueOn(c)) << c;
+        ASSERT_EQ(at.getValue(c), sum[0] / sum[3]) << c;  // exact
+        negative += ijk[0] < 0 || ijk[1] < 0 || ijk[2] < 0;
+    }
+    EXPECT_GT(negative, sums.size() / 2);  // leaves on both sides of the index origin
 }
 
 TEST(SurfaceAttributeGrids, UnknownValuesReachNoVoxel) {
