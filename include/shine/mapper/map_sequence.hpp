@@ -35,9 +35,11 @@ struct MapProducts {
     BakeStats bake;
     std::size_t surface_mem_bytes = 0;  ///< memUsage() of the baked level set
     MeshFileStats mesh;                 ///< mesh.ply (read it back to evaluate it)
-    double save_seconds = 0.0;          ///< writing map.vdb
-    double bake_seconds = 0.0;          ///< baking and writing surface.vdb
-    double mesh_seconds = 0.0;          ///< meshing and writing mesh.ply
+    /// Seconds of each stage. The saving runs beside the baking and the writing of surface.vdb
+    /// beside the meshing, so their sum is more than the wall time they took.
+    double save_seconds = 0.0;  ///< writing map.vdb
+    double bake_seconds = 0.0;  ///< baking and writing surface.vdb
+    double mesh_seconds = 0.0;  ///< meshing and writing mesh.ply
 };
 
 /// A mapped sequence: the mapper (which owns the NeuralSdf, its rays and MappingStats) and the
