@@ -605,11 +605,9 @@ void read_body(Reader& reader, const Header& header, const fs::path& path, bool 
             for (std::uint64_t f = 0; f < e.count; ++f) {
                 polygon.clear();
                 double observed = 0.0;
-                std::string polygon_where;
                 for (std::size_t i = 0; i < e.properties.size(); ++i) {
                     const Property& p = e.properties[i];
                     if (static_cast<int>(i) == index_property) {
-                        polygon_where = reader.where();
                         const std::size_t n = read_list_count(reader, p, path);
                         for (std::size_t k = 0; k < n; ++k) {
                             const double idx = reader.scalar(p.type);
