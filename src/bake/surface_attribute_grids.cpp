@@ -56,27 +56,8 @@ void fill_corner_means(GridT& grid, const openvdb::FloatGrid& level_set,
         const Eigen::Vector3f& p = vertices_map[v];
         return openvdb::Coord::floor(xform.worldToIndex(openvdb::Vec3d(p.x(), p.y(), p.z())));
     };
-    // A leaf's key: its origin / 8 in 21 bits an axis (offset to be positive).
-    constexpr std::int64_t kOffset = std::int64_t{1} << 20;
-    const auto key_of = [&](const openvdb::Coord& leaf_origin) {
-        std::uint64_t key = 0;
-        for (int a = 0; a < 3; ++a) {
-            const std::int64_t c = (static_cast<std::int64_t>(leaf_origin[a]) >> 3) + kOffset;
-            key = (key << 21) | (static_cast<std::uint64_t>(c) & ((std::uint64_t{1} << 21) - 1));
-        }
-        return key;
-    };
-    const auto origin_of = [&](std::uint64_t key) {
-        openvdb::Coord origin;
-        for (int a = 2; a >= 0; --a) {
-            origin[a] = static_cast<openvdb::Int32>(
-                (static_cast<std::int64_t>(key & ((std::uint64_t{1} << 21) - 1)) - kOffset) * 8);
-            key >>= 21;
-        }
-        return origin;
-    };
     struct Record {
-        std::uint64_t leaf;
+        openvdb::Coord leaf;  ///< the leaf node's origin
         std::uint32_t vertex;
         bool operator<(const Record& o) const {
             return leaf != o.leaf ? leaf < o.leaf : vertex < o.vertex;
@@ -98,7 +79,7 @@ void fill_corner_means(GridT& grid, const openvdb::FloatGrid& level_set,
                 for (int y = first.y(); y <= last.y(); y += kDim) {
                     for (int z = first.z(); z <= last.z(); z += kDim) {
                         block_records[b].push_back(
-                            {key_of(openvdb::Coord(x, y, z)), static_cast<std::uint32_t>(v)});
+                            {openvdb::Coord(x, y, z), static_cast<std::uint32_t>(v)});
                     }
                 }
             }
@@ -116,7 +97,7 @@ void fill_corner_means(GridT& grid, const openvdb::FloatGrid& level_set,
     starts.push_back(records.size());
     std::vector<std::unique_ptr<LeafT>> leaves(starts.size() - 1);
     tbb::parallel_for(std::size_t(0), leaves.size(), [&](std::size_t g) {
-        const openvdb::Coord origin = origin_of(records[starts[g]].leaf);
+        const openvdb::Coord origin = records[starts[g]].leaf;
         auto level = level_set.getConstAccessor();
         std::array<openvdb::Vec4f, LeafT::SIZE> sums;
         sums.fill(openvdb::Vec4f(0.0f));
