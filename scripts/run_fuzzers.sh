@@ -14,6 +14,7 @@
 # (scripts/setup.sh installs them); installs clang and libFuzzer when missing (Debian 12).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/run_at_most.sh
 
 seconds="${1:-30}"
 [ $# -gt 0 ] && shift
@@ -70,17 +71,8 @@ fuzz_one() {
 }
 parallel_runs="${SHINE_FUZZ_JOBS:-$jobs}"
 echo "run_fuzzers: ${#targets[@]} targets for ${seconds} s each, ${parallel_runs} at a time"
-running=0
-for t in "${targets[@]}"; do
-    rm -f "build-fuzz/$t.status"
-    if [ "$running" -ge "$parallel_runs" ]; then
-        wait -n || true
-        running=$((running - 1))
-    fi
-    fuzz_one "$t" &
-    running=$((running + 1))
-done
-wait || true
+for t in "${targets[@]}"; do rm -f "build-fuzz/$t.status"; done
+run_at_most "$parallel_runs" fuzz_one "${targets[@]}"
 failed=()
 summary=()
 for t in "${targets[@]}"; do

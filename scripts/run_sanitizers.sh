@@ -15,6 +15,7 @@
 # ShineVDB's dependencies (scripts/setup.sh installs them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/run_at_most.sh
 
 jobs="${SHINE_BUILD_JOBS:-$(nproc)}"
 exclude="${SHINE_ASAN_EXCLUDE:-^blender_}"
@@ -49,22 +50,14 @@ export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$PWD/fuzz/lsan_suppressions.tx
 if [ "$readers_only" -eq 1 ]; then
     # One test program per core at a time, each into its own log; a failing one's log is shown.
     mkdir -p build-asan/logs
-    running=0
-    for t in "${targets[@]}"; do
-        if [ "$running" -ge "$jobs" ]; then
-            wait -n || true
-            running=$((running - 1))
+    test_one() {
+        if "build-asan/tests/$1" --gtest_brief=1 >"build-asan/logs/$1.log" 2>&1; then
+            echo ok >"build-asan/logs/$1.status"
+        else
+            echo FAILED >"build-asan/logs/$1.status"
         fi
-        (
-            if "build-asan/tests/$t" --gtest_brief=1 >"build-asan/logs/$t.log" 2>&1; then
-                echo ok >"build-asan/logs/$t.status"
-            else
-                echo FAILED >"build-asan/logs/$t.status"
-            fi
-        ) &
-        running=$((running + 1))
-    done
-    wait || true
+    }
+    run_at_most "$jobs" test_one "${targets[@]}"
     failed=()
     for t in "${targets[@]}"; do
         if [ "$(cat "build-asan/logs/$t.status" 2>/dev/null)" != ok ]; then
