@@ -823,9 +823,10 @@ int run_map(const MapOptions& given_options) {
                 map_sequence_incremental(odometry_config, sequence, out / "odometry", "odometry");
             const std::vector<Eigen::Isometry3d>& poses = odometry_run->odometry->poses();
             write_kitti_poses(out / "poses.txt", poses);
-            batch_map = map_sequence(config, sequence.with_poses(poses), out, {}, &control);
+            batch_map = map_sequence(config, sequence.with_poses(poses), out, {}, &control,
+                                     cameras.has_value());
         } else {
-            batch_map = map_sequence(config, sequence, out, {}, &control);
+            batch_map = map_sequence(config, sequence, out, {}, &control, cameras.has_value());
         }
     } catch (const Error&) {
         // A scan that cannot be read (a damaged message deep in a recording) leaves no empty
@@ -896,7 +897,10 @@ int run_map(const MapOptions& given_options) {
         }
         const ReflectanceVoxels* reflectance =
             batch_map && batch_map->reflectance ? &*batch_map->reflectance : nullptr;
-        add_map_appearance(out, mapped_final, config, cameras, reflectance, appearance_json);
+        WrittenSurface* written =
+            batch_map && batch_map->products.written ? &*batch_map->products.written : nullptr;
+        add_map_appearance(out, mapped_final, config, cameras, reflectance, written,
+                           appearance_json);
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();

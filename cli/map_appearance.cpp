@@ -24,9 +24,9 @@ std::optional<CameraRig> find_sequence_cameras(const ScanSequence& selected, boo
 
 void add_map_appearance(const fs::path& out, const ScanSequence& mapped, const MapperConfig& config,
                         const std::optional<CameraRig>& rig, const ReflectanceVoxels* reflectance,
-                        nlohmann::json& json) {
+                        WrittenSurface* written, nlohmann::json& json) {
     const SurfaceAppearanceStats s =
-        add_surface_appearance(out, mapped, config, rig, {}, reflectance);
+        add_surface_appearance(out, mapped, config, rig, {}, reflectance, written);
     if (!s.colour && !s.intensity) return;
     const auto share = [](std::size_t part, std::size_t whole) {
         return whole ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;

@@ -11,6 +11,7 @@
 #include "shine/io/camera_rig.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/written_surface.hpp"
 
 namespace shine::cli {
 
@@ -20,10 +21,12 @@ std::optional<CameraRig> find_sequence_cameras(const ScanSequence& selected, boo
 
 /// Adds colour and reflectance to OUT's mesh.ply and surface.vdb from the scans of `mapped` (at
 /// the poses the map was made at; `reflectance`: their intensities if mapping accumulated them);
-/// prints a line and sets json["appearance"] when it did.
+/// prints a line and sets json["appearance"] when it did. `written`: the products' level set and
+/// mesh in memory (taken over), or null to read them from OUT.
 void add_map_appearance(const std::filesystem::path& out, const ScanSequence& mapped,
                         const MapperConfig& config, const std::optional<CameraRig>& rig,
-                        const ReflectanceVoxels* reflectance, nlohmann::json& json);
+                        const ReflectanceVoxels* reflectance, WrittenSurface* written,
+                        nlohmann::json& json);
 
 /// With cameras and held-out scans: OUT/mesh.ply's colours rendered into the held-out scans'
 /// cameras (at `scored`'s poses) and compared with their images, beside the naive baseline;

@@ -142,6 +142,31 @@ TEST(RegionMesh, AdaptivityMeshesAtOnceAndBadRegionSizesAreRefused) {
     EXPECT_FALSE(fs::exists(dir / "bad.ply"));
 }
 
+TEST(RegionMesh, TheCopyKeptInMemoryIsWhatTheFileReadsBackAs) {
+    const auto grid = test_level_set();
+    grid->insertMeta(kOriginMetadataKey, openvdb::Vec3DMetadata(openvdb::Vec3d(500000, 5e6, 12)));
+    const fs::path dir = tmp_dir("copy");
+    MeshConfig adaptive;
+    adaptive.adaptivity = 0.5;
+    // Region by region (seams welded) and at once (adaptivity).
+    for (const MeshConfig& config : {MeshConfig{}, adaptive}) {
+        SCOPED_TRACE("adaptivity " + std::to_string(config.adaptivity));
+        TriangleMesh kept;
+        kept.vertex_intensity = {1.0f};  // replaced, not appended to
+        const MeshFileStats stats =
+            write_level_set_mesh(*grid, config, dir / "mesh.ply", 24, &kept);
+        const TriangleMesh back = read_ply_mesh(dir / "mesh.ply");
+        ASSERT_GT(back.triangles.size(), 1000u);
+        EXPECT_EQ(kept.triangles.size(), stats.triangles);
+        EXPECT_TRUE(kept.vertices == back.vertices);
+        EXPECT_TRUE(kept.triangles == back.triangles);
+        EXPECT_EQ(kept.origin_world_m, back.origin_world_m);
+        EXPECT_EQ(kept.face_observed, back.face_observed);
+        EXPECT_TRUE(kept.vertex_intensity.empty());
+        EXPECT_TRUE(kept.vertex_rgb.empty());
+    }
+}
+
 TEST(RegionMesh, EmptyLevelSetGivesAValidEmptyPly) {
     openvdb::initialize();
     const auto grid = openvdb::FloatGrid::create(0.3f);

@@ -867,11 +867,17 @@ fs::path part_path(const fs::path& path, const char* part) {
 }
 }  // namespace
 
-PlyMeshStreamWriter::PlyMeshStreamWriter(fs::path path, const Eigen::Vector3d& origin_world_m)
+PlyMeshStreamWriter::PlyMeshStreamWriter(fs::path path, const Eigen::Vector3d& origin_world_m,
+                                         TriangleMesh* copy)
     : path_(std::move(path)),
       origin_world_m_(origin_world_m),
       vertex_path_(part_path(path_, "vertices")),
-      face_path_(part_path(path_, "faces")) {
+      face_path_(part_path(path_, "faces")),
+      copy_(copy) {
+    if (copy_) {
+        *copy_ = TriangleMesh{};
+        copy_->origin_world_m = origin_world_m;
+    }
     vertices_.open(vertex_path_, std::ios::binary | std::ios::trunc);
     faces_.open(face_path_, std::ios::binary | std::ios::trunc);
     if (!vertices_ || !faces_) {
@@ -909,6 +915,7 @@ std::int32_t PlyMeshStreamWriter::add_vertex(const Eigen::Vector3f& vertex) {
     for (int a = 0; a < 3; ++a) out = put_le(out, vertex[a]);
     vertices_.write(bytes, sizeof(bytes));
     check(vertices_, "vertices");
+    if (copy_) copy_->vertices.push_back(vertex);
     return static_cast<std::int32_t>(num_vertices_++);
 }
 
@@ -928,6 +935,7 @@ void PlyMeshStreamWriter::add_triangle(std::int32_t a, std::int32_t b, std::int3
     for (const std::int32_t index : {a, b, c}) out = put_le(out, index);
     faces_.write(bytes, sizeof(bytes));
     check(faces_, "faces");
+    if (copy_) copy_->triangles.emplace_back(a, b, c);
     ++num_triangles_;
 }
 

@@ -47,7 +47,7 @@ bool train_with_progress(BatchMapper& mapper, int iterations, const std::string&
 }
 
 MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
-                               const fs::path& out_dir) {
+                               const fs::path& out_dir, bool keep_surface) {
     MapProducts products;
     const std::string config_yaml = config_to_yaml(config);
     // The map is saved while the level set is baked, and the level set written while it is
@@ -73,9 +73,13 @@ MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
         },
         [&] {
             const auto t0 = std::chrono::steady_clock::now();
-            products.mesh = write_level_set_mesh(*surface, config.mesh, out_dir / "mesh.ply");
+            if (keep_surface) products.written.emplace();
+            products.mesh =
+                write_level_set_mesh(*surface, config.mesh, out_dir / "mesh.ply", kMeshRegionVoxels,
+                                     keep_surface ? &products.written->mesh : nullptr);
             products.mesh_seconds = seconds_since(t0);
         });
+    if (keep_surface) products.written->level_set = surface;
     return products;
 }
 
@@ -200,7 +204,7 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
 
 SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& given_sequence,
                          const fs::path& out_dir, const std::string& progress_tag,
-                         const RunControl* control) {
+                         const RunControl* control, bool keep_surface) {
     MapperConfig config = config_in;
     config.finalize();
     ensure_directory(out_dir);
@@ -327,7 +331,9 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
     } else {
         train_with_progress(mapper, iterations, tagged("train", progress_tag));
     }
-    result.products = write_map_products(mapper.sdf(), mapper.config(), out_dir);
+    const bool intensity = result.reflectance && !result.reflectance->empty();
+    result.products =
+        write_map_products(mapper.sdf(), mapper.config(), out_dir, keep_surface || intensity);
     const MappingStats& stats = mapper.stats();
     StageProfile& profile = result.profile;
     profile.threads = static_cast<int>(

@@ -135,7 +135,8 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
                                               const MapperConfig& config,
                                               const std::optional<CameraRig>& rig,
                                               const SurfaceAppearanceConfig& appearance,
-                                              const ReflectanceVoxels* reflectance_map) {
+                                              const ReflectanceVoxels* reflectance_map,
+                                              WrittenSurface* written) {
     using namespace surface_appearance_internal;
     const auto start = std::chrono::steady_clock::now();
     SurfaceAppearanceStats stats;
@@ -152,11 +153,16 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
 
     const fs::path mesh_path = out_dir / "mesh.ply";
     const fs::path surface_path = out_dir / "surface.vdb";
-    // The mesh and the level set are read side by side.
+    // The mesh and the level set: taken over, or read side by side.
     TriangleMesh mesh;
     openvdb::FloatGrid::Ptr level_set;
-    tbb::parallel_invoke([&] { mesh = read_ply_mesh(mesh_path); },
-                         [&] { level_set = read_level_set(surface_path); });
+    if (written && written->level_set) {
+        mesh = std::move(written->mesh);
+        level_set = std::move(written->level_set);
+    } else {
+        tbb::parallel_invoke([&] { mesh = read_ply_mesh(mesh_path); },
+                             [&] { level_set = read_level_set(surface_path); });
+    }
     const double voxel_m = level_set->transform().voxelSize()[0];
     stats.vertices = mesh.vertices.size();
     openvdb::GridPtrVec extra;
@@ -212,8 +218,9 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
         (grid->getName() == kColorGridName ? stats.coloured_voxels : stats.intensity_voxels) =
             active;
     }
-    write_surface_grids(surface_path, level_set, extra);
-    write_ply_mesh(mesh_path, mesh);
+    // Each file is written atomically on its own core.
+    tbb::parallel_invoke([&] { write_surface_grids(surface_path, level_set, extra); },
+                         [&] { write_ply_mesh(mesh_path, mesh); });
     stats.seconds = seconds_since(start);
     return stats;
 }

@@ -122,7 +122,8 @@ class SeamVertices {
 }  // namespace
 
 MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const MeshConfig& config,
-                                   const std::filesystem::path& path, int region_voxels) {
+                                   const std::filesystem::path& path, int region_voxels,
+                                   TriangleMesh* written) {
     using LeafT = openvdb::FloatTree::LeafNodeType;
     constexpr int kLeaf = static_cast<int>(LeafT::DIM);
     if (region_voxels < kLeaf || region_voxels % kLeaf != 0) {
@@ -131,11 +132,12 @@ MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const Me
     }
     MeshFileStats stats;
     if (config.adaptivity != 0.0 || config.min_component_triangles > 0) {
-        const TriangleMesh mesh = mesh_level_set(level_set, config);
+        TriangleMesh mesh = mesh_level_set(level_set, config);
         write_ply_mesh(path, mesh);
         stats.vertices = mesh.vertices.size();
         stats.triangles = mesh.triangles.size();
         stats.regions = 1;
+        if (written) *written = std::move(mesh);
         return stats;
     }
     // Regions are columns, region_voxels square and as tall as the leaves reach (plus a leaf):
@@ -155,7 +157,7 @@ MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const Me
     std::sort(regions.begin(), regions.end());
     regions.erase(std::unique(regions.begin(), regions.end()), regions.end());
 
-    PlyMeshStreamWriter writer(path, grid_origin_world_m(level_set));
+    PlyMeshStreamWriter writer(path, grid_origin_world_m(level_set), written);
     SeamVertices seam;
     const openvdb::math::Transform& transform = level_set.transform();
     std::vector<openvdb::Vec3s> points;

@@ -53,7 +53,10 @@ void write_ply_mesh(const std::filesystem::path& path, const TriangleMesh& mesh)
 /// files are removed either way. Throws IoError naming `path` when a write fails.
 class PlyMeshStreamWriter {
   public:
-    PlyMeshStreamWriter(std::filesystem::path path, const Eigen::Vector3d& origin_world_m);
+    /// With `copy`, every vertex and triangle added is also appended to it (which starts empty,
+    /// at origin_world_m): the mesh as the file will hold it, for a caller that needs it next.
+    PlyMeshStreamWriter(std::filesystem::path path, const Eigen::Vector3d& origin_world_m,
+                        TriangleMesh* copy = nullptr);
     ~PlyMeshStreamWriter();
     PlyMeshStreamWriter(const PlyMeshStreamWriter&) = delete;
     PlyMeshStreamWriter& operator=(const PlyMeshStreamWriter&) = delete;
@@ -80,6 +83,7 @@ class PlyMeshStreamWriter {
     std::ofstream faces_;
     std::size_t num_vertices_ = 0;
     std::size_t num_triangles_ = 0;
+    TriangleMesh* copy_ = nullptr;
 };
 
 /// Reads the vertex positions of a PLY point cloud (faces, if any, are ignored; NaN coordinates

@@ -25,6 +25,7 @@
 #include "shine/mapper/mapper_config.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
 #include "shine/mapper/stage_profile.hpp"
+#include "shine/mapper/written_surface.hpp"
 #include "shine/mesh/level_set_mesh.hpp"
 #include "shine/model/neural_sdf.hpp"
 
@@ -40,6 +41,8 @@ struct MapProducts {
     double save_seconds = 0.0;  ///< writing map.vdb
     double bake_seconds = 0.0;  ///< baking and writing surface.vdb
     double mesh_seconds = 0.0;  ///< meshing and writing mesh.ply
+    /// With write_map_products(..., keep_surface): the level set and mesh as written.
+    std::optional<WrittenSurface> written;
 };
 
 /// A mapped sequence: the mapper (which owns the NeuralSdf, its rays and MappingStats) and the
@@ -77,10 +80,11 @@ bool train_with_progress(BatchMapper& mapper, int iterations, const std::string&
 /// Writes the products of a trained map into `out_dir` (which must exist): `map.vdb` (the neural
 /// map with `config` as YAML), `surface.vdb` (baked with config.bake) and `mesh.ply` (meshed with
 /// config.mesh, region by region: write_level_set_mesh). Every file is written atomically. Peak
-/// memory beyond the map is the level set's; the mesh is never held whole. Throws IoError naming
-/// the file on failure.
+/// memory beyond the map is the level set's; the mesh is never held whole, unless `keep_surface`
+/// asks for the level set and the mesh in products.written (for a step that reads them next).
+/// Throws IoError naming the file on failure.
 MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
-                               const std::filesystem::path& out_dir);
+                               const std::filesystem::path& out_dir, bool keep_surface = false);
 
 /// Maps every scan of `sequence` in batch mode with `config` (finalized here) and writes the
 /// products into `out_dir` (created if missing). With config.refine.rounds > 0 (the default) the
@@ -97,9 +101,12 @@ MapProducts write_map_products(const NeuralSdf& sdf, const MapperConfig& config,
 /// control->resume it first loads every scan again, restores the checkpoint's training state and
 /// continues. The checkpoint file is left in place (the caller removes it once it has what it
 /// needs).
+///
+/// The level set and the mesh stay in memory (products.written) when `keep_surface` is set or
+/// the scans carried intensity: the surface's colour and reflectance, which read them, come next.
 SequenceMap map_sequence(const MapperConfig& config, const ScanSequence& sequence,
                          const std::filesystem::path& out_dir, const std::string& progress_tag = {},
-                         const RunControl* control = nullptr);
+                         const RunControl* control = nullptr, bool keep_surface = false);
 
 /// Every scan of `selected` placed with pose refinement's corrections (interpolate_corrections):
 /// the scans `mapped` (indices into `selected`, ascending) at `refined_mapped`, each other scan at

@@ -2,7 +2,8 @@
 // last step of `shine map` when the scans carry intensity or the sequence folder holds camera
 // images (io/camera_rig.hpp).
 //
-//   1. mesh.ply and surface.vdb are read back (the mesh is held whole here, unlike when meshing).
+//   1. mesh.ply and surface.vdb are read back, or taken over from the step that wrote them (the
+//      mesh is held whole here, unlike when meshing).
 //   2. Colour (with images): every mapped scan's images, one at a time, are placed at the scan's
 //      final pose (the refined one in batch mode), the mesh is rasterised into each (MeshRaster)
 //      and the mesh's vertex colours are fitted to the pixels (vertex_colour_fit.hpp: least
@@ -29,6 +30,7 @@
 #include "shine/io/camera_rig.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/written_surface.hpp"
 
 namespace shine {
 
@@ -65,14 +67,14 @@ void add_scan_reflectance(ReflectanceVoxels& voxels, const Scan& scan,
 /// `rig` (none: reflectance only). Does nothing when there are no images of those scans and no
 /// intensity. `reflectance_map`: the scans' intensities already accumulated (add_scan_reflectance,
 /// in the map frame of mesh.ply, voxels of surface.vdb's size); null: read the scans again.
+/// `written`: the level set and mesh those two files hold (write_map_products), taken over
+/// instead of read back; null: read from OUT_DIR.
 /// Throws IoError / DataError naming a broken image or file; the products are then left as they
 /// were.
-SurfaceAppearanceStats add_surface_appearance(const std::filesystem::path& out_dir,
-                                              const ScanSequence& mapped,
-                                              const MapperConfig& config,
-                                              const std::optional<CameraRig>& rig,
-                                              const SurfaceAppearanceConfig& appearance = {},
-                                              const ReflectanceVoxels* reflectance_map = nullptr);
+SurfaceAppearanceStats add_surface_appearance(
+    const std::filesystem::path& out_dir, const ScanSequence& mapped, const MapperConfig& config,
+    const std::optional<CameraRig>& rig, const SurfaceAppearanceConfig& appearance = {},
+    const ReflectanceVoxels* reflectance_map = nullptr, WrittenSurface* written = nullptr);
 
 /// Area-weighted unit vertex normals of `mesh` (zero for a vertex without triangles).
 std::vector<Eigen::Vector3d> vertex_normals(const TriangleMesh& mesh);

@@ -41,9 +41,13 @@ inline constexpr int kMeshRegionVoxels = 256;
 /// mesh_level_set()'s, in another order (a quad's diagonal may differ), and memory stays that of
 /// one column, whatever the grid's extent. Adaptivity and the removal of small components need
 /// the whole mesh: with either set, it meshes the grid at once.
+/// With `written`, the mesh is also left there as the file holds it (what read_ply_mesh() gives
+/// back: vertices, triangles, origin), for a caller that would read the file next; the mesh is
+/// then held whole.
 MeshFileStats write_level_set_mesh(const openvdb::FloatGrid& level_set, const MeshConfig& config,
                                    const std::filesystem::path& path,
-                                   int region_voxels = kMeshRegionVoxels);
+                                   int region_voxels = kMeshRegionVoxels,
+                                   TriangleMesh* written = nullptr);
 
 /// Removes connected components (by shared vertices) with fewer than `min_triangles` triangles
 /// and drops unreferenced vertices. Returns the number of triangles removed.
