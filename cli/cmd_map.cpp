@@ -807,6 +807,9 @@ int run_map(const MapOptions& given_options) {
             MapToContinue from;
             from.file = old_map_file;
             from.sdf = &old_map->sdf;
+            const OldDrive old_drive = read_old_drive(old_map_file, opt.quiet);
+            from.surface = old_drive.surface ? &*old_drive.surface : nullptr;
+            from.trajectory_world = old_drive.trajectory_world;
             incremental_map = map_sequence_incremental(config, sequence, out, {}, nullptr, &from);
             old_map.reset();
         } else if (incremental) {
@@ -917,6 +920,8 @@ int run_map(const MapOptions& given_options) {
     if (continuing) {
         from_json["new_scans"] = stats.frames;
         from_json["new_corners"] = sdf.octree.num_corners() - incremental_map->mapper->start_rows();
+        from_json["old_viewpoints"] = incremental_map->old_viewpoints;
+        from_json["old_viewpoint_seconds"] = incremental_map->old_viewpoint_seconds;
         json["from"] = from_json;
     }
     json["frames"] = stats.frames;

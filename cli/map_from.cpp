@@ -11,6 +11,7 @@
 #include "shine/core/median.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/io/kitti.hpp"
+#include "shine/io/ply.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
 #include "shine/mapper/map_localizer.hpp"
 
@@ -137,6 +138,24 @@ MapProducts write_map_without_new_scans(const MapperConfig& config, NeuralSdf& s
     sdf = std::move(mapper.sdf());
     ensure_directory(out_dir);
     return write_map_products(sdf, stored, out_dir);
+}
+
+OldDrive read_old_drive(const fs::path& map_file, bool quiet) {
+    OldDrive old;
+    std::string source;
+    old.trajectory_world = old_trajectory(map_file, source);
+    const fs::path mesh = map_file.parent_path() / "mesh.ply";
+    std::error_code ec;
+    if (old.trajectory_world.empty() || !fs::exists(mesh, ec)) return old;
+    try {
+        old.surface = read_ply_mesh(mesh);
+    } catch (const Error& e) {
+        if (!quiet) {
+            std::printf("note: the old drive does not vote on the new drive's movers: %s\n",
+                        e.what());
+        }
+    }
+    return old;
 }
 
 }  // namespace shine::cli

@@ -7,8 +7,11 @@
 
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
+#include <vector>
 
+#include "shine/geometry/triangle_mesh.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/mapper_config.hpp"
@@ -45,5 +48,16 @@ ScanSequence open_continued_selection(const std::filesystem::path& data,
 MapProducts write_map_without_new_scans(const MapperConfig& config, NeuralSdf& sdf,
                                         const std::filesystem::path& map_file,
                                         const std::filesystem::path& out_dir);
+
+/// The drive a continued map was made from, so that it can vote on the new drive's movers
+/// (MapToContinue): the surface beside `map_file` (its folder's mesh.ply) and the trajectory the
+/// map was made along (the places the localiser searches). Either is empty when the folder does
+/// not have it (a map.vdb on its own), and then the old drive does not vote; a mesh.ply that
+/// cannot be read is reported (unless `quiet`) and left out the same way.
+struct OldDrive {
+    std::optional<TriangleMesh> surface;
+    std::vector<Eigen::Isometry3d> trajectory_world;
+};
+OldDrive read_old_drive(const std::filesystem::path& map_file, bool quiet);
 
 }  // namespace shine::cli

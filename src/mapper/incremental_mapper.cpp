@@ -357,6 +357,11 @@ bool IncrementalMapper::keeps_scan_images() const {
            dynamic.objects.min_dynamic_share > 0.0f && config_.incremental.consolidation_steps > 0;
 }
 
+void IncrementalMapper::add_old_viewpoints(
+    std::vector<std::pair<Eigen::Isometry3f, RangeImage>> viewpoints) {
+    for (auto& viewpoint : viewpoints) old_viewpoints_.push_back(std::move(viewpoint));
+}
+
 std::size_t IncrementalMapper::vote_among_kept_scans() {
     const DynamicPointConfig& dynamic = config_.dynamic;
     const std::size_t n = window_.size();
@@ -388,6 +393,18 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
                                  apart > near_frames);
         });
     }
+    // A continued map's old drive votes too, from every viewpoint, as far scans do.
+    for (auto& [T_sensor_map, image] : old_viewpoints_) {
+        if (!votes_on || image.empty()) continue;
+        image.prepare_window(dynamic.window_bins);
+        tbb::parallel_for(first, n, [&](std::size_t w) {
+            if (votes[w].empty()) return;
+            add_free_space_votes(image, T_sensor_map, window_[w].points_map.data(),
+                                 window_[w].points_map.size(), dynamic, votes[w].data(),
+                                 /*far=*/true);
+        });
+    }
+    old_viewpoints_.clear();
     // The images have cast their votes, and the motion test's cells and the consolidation's rays
     // are among the run's largest arrays: the images' memory, and the pages the heap holds free,
     // go back first. Scans added after this bring their own images; the ones emptied here vote

@@ -1,10 +1,12 @@
 #include "shine/mapper/incremental_sequence.hpp"
 
 #include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -16,6 +18,8 @@
 #include "shine/core/error.hpp"
 #include "shine/core/progress.hpp"
 #include "shine/core/stopwatch.hpp"
+#include "shine/geometry/map_frame.hpp"
+#include "shine/geometry/ray_caster.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/tum.hpp"
@@ -247,6 +251,40 @@ std::vector<Eigen::Isometry3d> refined_after_consolidation(const ScanSequence& s
     return poses;
 }
 }  // namespace
+
+namespace {
+/// The old drive's viewpoints that vote on a continued map's new scans: one wherever the sensor
+/// moved this far or turned this much since the last.
+constexpr double kViewpointSpacingM = 2.0;
+constexpr double kViewpointTurnDeg = 15.0;
+}  // namespace
+
+std::vector<std::pair<Eigen::Isometry3f, RangeImage>> surface_viewpoints(
+    const TriangleMesh& surface, const std::vector<Eigen::Isometry3d>& trajectory_world,
+    const Eigen::Vector3d& origin_world_m, const std::vector<Eigen::Vector3f>& points_sensor,
+    double max_range_m) {
+    const TriangleMesh surface_map = in_frame(surface, origin_world_m);
+    const RayCaster caster(surface_map);
+    std::vector<Eigen::Vector3d> directions;
+    directions.reserve(points_sensor.size());
+    for (const Eigen::Vector3f& p : points_sensor) {
+        const double range = p.cast<double>().norm();
+        if (std::isfinite(range) && range > 1e-6) directions.push_back(p.cast<double>() / range);
+    }
+    std::vector<std::pair<Eigen::Isometry3f, RangeImage>> viewpoints(trajectory_world.size());
+    tbb::parallel_for(std::size_t(0), trajectory_world.size(), [&](std::size_t k) {
+        const Eigen::Isometry3d T_map_sensor = map_from_sensor(trajectory_world[k], origin_world_m);
+        const Eigen::Vector3d origin = T_map_sensor.translation();
+        std::vector<Eigen::Vector3f> returns_sensor;
+        returns_sensor.reserve(directions.size());
+        for (const Eigen::Vector3d& d : directions) {
+            const RayHit hit = caster.cast(origin, T_map_sensor.linear() * d, 0.0, max_range_m);
+            if (hit.hit()) returns_sensor.push_back((d * hit.distance_m).cast<float>());
+        }
+        viewpoints[k] = {T_map_sensor.inverse().cast<float>(), RangeImage(returns_sensor)};
+    });
+    return viewpoints;
+}
 
 IncrementalSequenceMap map_sequence_incremental(
     const MapperConfig& config_in, const ScanSequence& sequence, const fs::path& out_dir,
@@ -560,6 +598,33 @@ IncrementalSequenceMap map_sequence_incremental(
             result.keyframes->counts().skipped += result.deferred.size();
             result.deferred.clear();
         }
+    }
+    if (from && from->surface && !from->trajectory_world.empty() && sequence.size() > 0 &&
+        mapper.keeps_scan_images()) {
+        // The old drive votes on the new drive's movers, from where it was, through the old
+        // surface, in the new drive's LiDAR pattern.
+        const auto start = std::chrono::steady_clock::now();
+        // Viewpoints 2 m or 15 degrees apart: on the street, every second pose of a drive 1 m a
+        // scan apart gave the F-score of every pose (95.384 against 95.385 %) in 1.2 s instead
+        // of 2.0; every fourth 95.372 %.
+        std::vector<Eigen::Isometry3d> viewpoints;
+        for (const Eigen::Isometry3d& pose : from->trajectory_world) {
+            if (!viewpoints.empty()) {
+                const Eigen::Isometry3d step = viewpoints.back().inverse() * pose;
+                const double turned_deg =
+                    Eigen::AngleAxisd(step.linear()).angle() * 180.0 / 3.14159265358979323846;
+                if (step.translation().norm() < kViewpointSpacingM &&
+                    turned_deg < kViewpointTurnDeg) {
+                    continue;
+                }
+            }
+            viewpoints.push_back(pose);
+        }
+        result.old_viewpoints = viewpoints.size();
+        mapper.add_old_viewpoints(
+            surface_viewpoints(*from->surface, viewpoints, mapper.sdf().origin_world_m,
+                               sequence.load(0).points_sensor, config.preprocess.max_range_m));
+        result.old_viewpoint_seconds = seconds_since(start);
     }
     if (consolidation_steps > 0 && sequence.size() > 0) {
         // The kept scans trained together before the bake (IncrementalConfig). Like the bake, it

@@ -146,6 +146,18 @@ class IncrementalMapper {
     /// A continued mapper writes no checkpoint (save_state() throws Error).
     void start_from(NeuralSdf&& old, const std::string& source);
 
+    /// Viewpoints of the drive a continued map was made from (start_from), each a range image of
+    /// the old surface seen from one of its sensor poses (map frame). At the consolidation they
+    /// vote on the kept scans' points as far scans of the same run do (vote_among_kept_scans:
+    /// compact objects only), so that a mover of the new drive standing where the old drive saw
+    /// through is dropped, as a map of both drives at once drops it. Needs the end votes
+    /// (keeps_scan_images()); ignored without them.
+    void add_old_viewpoints(std::vector<std::pair<Eigen::Isometry3f, RangeImage>> viewpoints);
+    /// Whether the kept scans vote on each other before the consolidation (dynamic filter on, far
+    /// votes configured: far_vote_frames > vote_frames, objects dropped whole:
+    /// objects.min_dynamic_share > 0, and consolidation steps to run).
+    bool keeps_scan_images() const;
+
     /// Integrates one scan (steps 1-5 of the file comment). Throws DataError naming the scan's
     /// source for invalid points (per preprocess config).
     const IncrementalFrameStats& add_scan(const Scan& scan);
@@ -227,10 +239,6 @@ class IncrementalMapper {
     std::vector<FreeSpaceVotes> drop_dynamic_points(const Scan& scan, ScanInMap& current,
                                                     ScanInMap* current_members,
                                                     IncrementalFrameStats& frame);
-    /// Whether the kept scans vote on each other before the consolidation (dynamic filter on, far
-    /// votes configured: far_vote_frames > vote_frames, objects dropped whole:
-    /// objects.min_dynamic_share > 0, and consolidation steps to run).
-    bool keeps_scan_images() const;
     /// Before the consolidation: every kept scan's points are voted on by the other kept scans'
     /// range images, from both sides, near (vote_frames) and far (up to far_vote_frames), as batch
     /// mode's votes are. Of the points those votes make dynamic, those of compact objects are
@@ -296,6 +304,8 @@ class IncrementalMapper {
     /// map-to-sensor transform, so that the kept scans can vote on each other's points before
     /// the consolidation; empty images otherwise. In step with window_.
     std::deque<std::pair<Eigen::Isometry3f, RangeImage>> window_images_;
+    /// add_old_viewpoints(): map-to-sensor transforms and range images of the old drive.
+    std::vector<std::pair<Eigen::Isometry3f, RangeImage>> old_viewpoints_;
     std::pair<Eigen::Isometry3f, RangeImage> current_image_;  ///< the scan being added
     RangeImage spare_image_;  ///< the image of the scan that last left the window, for its buffers
     std::vector<IncrementalFrameStats> frames_;

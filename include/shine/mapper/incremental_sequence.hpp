@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "shine/geometry/triangle_mesh.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
@@ -59,6 +60,9 @@ struct IncrementalSequenceMap {
     /// Deferred scans waiting for the catch-up (empty after the run).
     std::deque<std::size_t> deferred;
     double catch_up_seconds = 0.0;  ///< integrating the deferred scans after the last one
+    /// A continued map: the old drive's viewpoints cast (MapToContinue) and how long it took.
+    std::size_t old_viewpoints = 0;
+    double old_viewpoint_seconds = 0.0;
     /// Wall-clock seconds of each scan this run went through, from its load to the end of its
     /// mapping (odometry, deskew and mapping included; a resumed run's replayed scans are not).
     std::vector<double> scan_wall_seconds;
@@ -75,7 +79,20 @@ struct IncrementalSequenceMap {
 struct MapToContinue {
     std::filesystem::path file;  ///< the map.vdb it was read from (errors, records)
     NeuralSdf* sdf = nullptr;    ///< load_neural_map's; moved into the mapper
+    /// The old drive, when its folder has them: its surface (mesh.ply) and the sensor poses it
+    /// was mapped from (world frame). From each pose the surface is cast in the new drive's
+    /// LiDAR pattern and votes on the new scans' movers (IncrementalMapper::add_old_viewpoints).
+    const TriangleMesh* surface = nullptr;
+    std::vector<Eigen::Isometry3d> trajectory_world;
 };
+
+/// Range images of `surface` (any frame origin) seen from each pose of `trajectory_world` in the
+/// directions of `points_sensor` (a scan of the new drive: its returns' directions), returns up
+/// to max_range_m, with the map-to-sensor transforms of the map frame at `origin_world_m`.
+std::vector<std::pair<Eigen::Isometry3f, RangeImage>> surface_viewpoints(
+    const TriangleMesh& surface, const std::vector<Eigen::Isometry3d>& trajectory_world,
+    const Eigen::Vector3d& origin_world_m, const std::vector<Eigen::Vector3f>& points_sensor,
+    double max_range_m);
 
 /// Maps every scan of `sequence` in incremental mode with `config` (finalized here) and writes the
 /// products into `out_dir` (created if missing), plus the progress meshes every
