@@ -96,12 +96,12 @@ double completion(const fs::path& out) {
 }
 
 // Measured with this configuration (8 + 6 scans, against the first drive's reference): the
-// continued map 95.09 % F (precision 92.97 %; 94.75 % and 92.33 % before the old drive voted on
+// continued map 95.20 % F (precision 93.21 %; 94.75 % and 92.33 % before the old drive voted on
 // the movers), the joint map 95.97 % (94.57, 97.41), the old map alone 96.16 % (95.08, 97.26). The
 // second drive's own surfaces, seen from another lane past movers, cost the precision; the old part
 // keeps its completion. Without the old rows held (an unregularised consolidation on the new drive
 // alone) the full street lost 3.5 points of completion.
-constexpr double kMaxFscoreBelowJoint = 0.02;     // 2 points (measured 0.88)
+constexpr double kMaxFscoreBelowJoint = 0.02;     // 2 points (measured 0.76)
 constexpr double kMaxCompletionBelowOld = 0.005;  // 0.5 points (measured +0.04)
 
 TEST(CliMapFrom, ContinuedStreetScoresNearTheJointMapAndKeepsTheOldPart) {
@@ -155,7 +155,7 @@ TEST(CliMapFrom, ContinuedStreetScoresNearTheJointMapAndKeepsTheOldPart) {
     const nlohmann::json bare_stats = read_json(unvoted / "stats.json");
     EXPECT_GT(stats["from"]["old_viewpoints"].get<std::size_t>(), 0u);
     EXPECT_EQ(bare_stats["from"]["old_viewpoints"].get<std::size_t>(), 0u);
-    // Measured: 8176 points dropped against 6390, precision 92.97 against 92.31 %, F 95.09
+    // Measured: 9081 points dropped against 6390, precision 93.21 against 92.31 %, F 95.20
     // against 94.74 %.
     EXPECT_GT(stats["dynamic"]["points_dropped"].get<std::size_t>(),
               bare_stats["dynamic"]["points_dropped"].get<std::size_t>() * 11 / 10);

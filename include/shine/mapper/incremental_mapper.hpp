@@ -148,10 +148,12 @@ class IncrementalMapper {
 
     /// Viewpoints of the drive a continued map was made from (start_from), each a range image of
     /// the old surface seen from one of its sensor poses (map frame). At the consolidation they
-    /// vote on the kept scans' points as far scans of the same run do (vote_among_kept_scans:
-    /// compact objects only), so that a mover of the new drive standing where the old drive saw
-    /// through is dropped, as a map of both drives at once drops it. Needs the end votes
-    /// (keeps_scan_images()); ignored without them.
+    /// vote on the kept scans' points as the kept scans vote on each other
+    /// (vote_among_kept_scans: compact objects only): as a near scan for a kept scan when the
+    /// viewpoint is no farther from it than its own near scans (vote_frames) are, else as a far
+    /// one. So a mover of the new drive standing where the old drive saw through is dropped, as a
+    /// map of both drives at once drops it. Needs the end votes (keeps_scan_images()); ignored
+    /// without them.
     void add_old_viewpoints(std::vector<std::pair<Eigen::Isometry3f, RangeImage>> viewpoints);
     /// Whether the kept scans vote on each other before the consolidation (dynamic filter on, far
     /// votes configured: far_vote_frames > vote_frames, objects dropped whole:
