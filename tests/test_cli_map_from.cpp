@@ -162,6 +162,23 @@ TEST(CliMapFrom, ContinuedStreetScoresNearTheJointMapAndKeepsTheOldPart) {
     EXPECT_GT(stats["eval"]["precision"].get<double>(),
               bare_stats["eval"]["precision"].get<double>() + 0.002);
     EXPECT_GE(fscore(continued), fscore(unvoted));
+
+    // A damaged mesh.ply beside the old map is reported, and the run goes on without the votes.
+    const fs::path damaged = test_dir() / "damaged_mesh";
+    fs::create_directories(damaged);
+    for (const char* file : {"map.vdb", "mesh.ply", "poses_refined.txt"}) {
+        fs::copy_file(old / file, damaged / file, fs::copy_options::overwrite_existing);
+    }
+    fs::resize_file(damaged / "mesh.ply", 1000);
+    const fs::path after_damage = test_dir() / "after_damage";
+    r = run("map " + quoted(d2) + " --from " + quoted(damaged) + " -o " + quoted(after_damage) +
+            " -c " + quoted(fast_config()));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("does not vote on the new drive's movers"), std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("mesh.ply"), std::string::npos) << r.output;
+    EXPECT_EQ(read_json(after_damage / "stats.json")["from"]["old_viewpoints"].get<std::size_t>(),
+              0u);
 }
 
 TEST(CliMapFrom, DriveWithoutPosesIsLocalisedInTheOldMap) {
