@@ -250,9 +250,7 @@ std::vector<Eigen::Isometry3d> refined_after_consolidation(const ScanSequence& s
     }
     return poses;
 }
-}  // namespace
 
-namespace {
 /// The old drive's viewpoints that vote on a continued map's new scans: one wherever the sensor
 /// moved this far or turned this much since the last.
 constexpr double kViewpointSpacingM = 2.0;
@@ -623,10 +621,9 @@ IncrementalSequenceMap map_sequence_incremental(
             if (!near_new_drive(pose)) continue;
             if (!viewpoints.empty()) {
                 const Eigen::Isometry3d step = viewpoints.back().inverse() * pose;
-                const double turned_deg =
-                    Eigen::AngleAxisd(step.linear()).angle() * 180.0 / 3.14159265358979323846;
+                const double turned_rad = Eigen::AngleAxisd(step.linear()).angle();
                 if (step.translation().norm() < kViewpointSpacingM &&
-                    turned_deg < kViewpointTurnDeg) {
+                    turned_rad < kViewpointTurnDeg * M_PI / 180.0) {
                     continue;
                 }
             }
