@@ -404,7 +404,10 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
                 std::max(near_reach_m[w], (window_[v].origin_map - window_[w].origin_map).norm());
         }
     }
-    for (auto& [T_sensor_map, image] : old_viewpoints_) {
+    for (auto& viewpoint : old_viewpoints_) {
+        // Named references, not a structured binding: a lambda may not capture one in C++17.
+        const Eigen::Isometry3f& T_sensor_map = viewpoint.first;
+        RangeImage& image = viewpoint.second;
         if (!votes_on || image.empty()) continue;
         image.prepare_window(dynamic.window_bins);
         const Eigen::Vector3f origin_map = T_sensor_map.inverse().translation();
