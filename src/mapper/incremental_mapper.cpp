@@ -395,28 +395,30 @@ std::size_t IncrementalMapper::vote_among_kept_scans() {
     }
     // A continued map's old drive votes too, from every viewpoint: as a near scan where it is no
     // farther from the scan than the scan's own near scans are, else as a far scan.
-    std::vector<float> near_reach_m(n, 0.0f);
-    for (std::size_t w = first; w < n; ++w) {
-        const std::size_t lo = w > first + near_frames ? w - near_frames : first;
-        const std::size_t hi = std::min(n, w + near_frames + 1);
-        for (std::size_t v = lo; v < hi; ++v) {
-            near_reach_m[w] =
-                std::max(near_reach_m[w], (window_[v].origin_map - window_[w].origin_map).norm());
+    if (votes_on && !old_viewpoints_.empty()) {
+        std::vector<float> near_reach_m(n, 0.0f);
+        for (std::size_t w = first; w < n; ++w) {
+            const std::size_t lo = w > first + near_frames ? w - near_frames : first;
+            const std::size_t hi = std::min(n, w + near_frames + 1);
+            for (std::size_t v = lo; v < hi; ++v) {
+                near_reach_m[w] = std::max(near_reach_m[w],
+                                           (window_[v].origin_map - window_[w].origin_map).norm());
+            }
         }
-    }
-    for (auto& viewpoint : old_viewpoints_) {
-        // Named references, not a structured binding: a lambda may not capture one in C++17.
-        const Eigen::Isometry3f& T_sensor_map = viewpoint.first;
-        RangeImage& image = viewpoint.second;
-        if (!votes_on || image.empty()) continue;
-        image.prepare_window(dynamic.window_bins);
-        const Eigen::Vector3f origin_map = T_sensor_map.inverse().translation();
-        tbb::parallel_for(first, n, [&](std::size_t w) {
-            if (votes[w].empty()) return;
-            const bool far = (origin_map - window_[w].origin_map).norm() > near_reach_m[w];
-            add_free_space_votes(image, T_sensor_map, window_[w].points_map.data(),
-                                 window_[w].points_map.size(), dynamic, votes[w].data(), far);
-        });
+        for (auto& viewpoint : old_viewpoints_) {
+            // Named references, not a structured binding: a lambda may not capture one in C++17.
+            const Eigen::Isometry3f& T_sensor_map = viewpoint.first;
+            RangeImage& image = viewpoint.second;
+            if (image.empty()) continue;
+            image.prepare_window(dynamic.window_bins);
+            const Eigen::Vector3f origin_map = T_sensor_map.inverse().translation();
+            tbb::parallel_for(first, n, [&](std::size_t w) {
+                if (votes[w].empty()) return;
+                const bool far = (origin_map - window_[w].origin_map).norm() > near_reach_m[w];
+                add_free_space_votes(image, T_sensor_map, window_[w].points_map.data(),
+                                     window_[w].points_map.size(), dynamic, votes[w].data(), far);
+            });
+        }
     }
     old_viewpoints_.clear();
     // The images have cast their votes, and the motion test's cells and the consolidation's rays

@@ -621,9 +621,8 @@ IncrementalSequenceMap map_sequence_incremental(
             if (!near_new_drive(pose)) continue;
             if (!viewpoints.empty()) {
                 const Eigen::Isometry3d step = viewpoints.back().inverse() * pose;
-                const double turned_rad = Eigen::AngleAxisd(step.linear()).angle();
                 if (step.translation().norm() < kViewpointSpacingM &&
-                    turned_rad < kViewpointTurnDeg * M_PI / 180.0) {
+                    rotation_angle_rad(step) < kViewpointTurnDeg * M_PI / 180.0) {
                     continue;
                 }
             }
