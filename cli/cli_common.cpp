@@ -106,7 +106,8 @@ HoldoutSplit split_holdout(const ScanSequence& selected, int every) {
 
 void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& selected,
                    const HoldoutSplit& split, int every, const PreprocessConfig& preprocess,
-                   nlohmann::json& json, const std::string& key, const DeskewConfig* deskew) {
+                   nlohmann::json& json, const std::string& key, const DeskewConfig* deskew,
+                   const TriangleMesh* mesh) {
     if (split.heldout.empty()) return;
     const auto start = std::chrono::steady_clock::now();
     HeldoutConfig config;
@@ -120,7 +121,8 @@ void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& s
         };
     }
     const HeldoutReport report =
-        evaluate_heldout(read_ply_mesh(mesh_path), selected, split.heldout, config, prepare);
+        mesh ? evaluate_heldout(*mesh, selected, split.heldout, config, prepare)
+             : evaluate_heldout(read_ply_mesh(mesh_path), selected, split.heldout, config, prepare);
     json[key] = nlohmann::json::parse(heldout_to_json(report));
     json[key]["every"] = every;
     json[key]["scans_deskewed"] = deskew_stats.scans_deskewed;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "shine/core/stopwatch.hpp"
+#include "shine/geometry/triangle_mesh.hpp"
 #include "shine/io/preprocess.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
@@ -63,11 +64,11 @@ HoldoutSplit split_holdout(const ScanSequence& selected, int every);
 /// the table and stores it in json[key] (and its seconds in json["seconds"][key]).
 /// With `deskew`, each held-out scan is deskewed first with the poses of `selected` around it
 /// (deskew_with_sequence_poses: the poses only, never the scan's own points), as mapping deskews
-/// the mapped scans.
+/// the mapped scans. With `mesh` (what mesh_path holds, kept in memory), the file is not read.
 void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& selected,
                    const HoldoutSplit& split, int every, const PreprocessConfig& preprocess,
                    nlohmann::json& json, const std::string& key = "heldout",
-                   const DeskewConfig* deskew = nullptr);
+                   const DeskewConfig* deskew = nullptr, const TriangleMesh* mesh = nullptr);
 
 /// `selected` timed from the azimuth where config says so (sequence_with_sweep_times: by the
 /// sweep test under deskew.azimuth_times auto); prints the verdict unless `quiet`.

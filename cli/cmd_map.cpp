@@ -802,6 +802,9 @@ int run_map(const MapOptions& given_options) {
     // its poses. The odometry run is deterministic, so a resumed run repeats it (without a
     // checkpoint of its own) and goes on from the batch training's checkpoint.
     std::optional<IncrementalSequenceMap> odometry_run;
+    // Batch mode keeps the level set and mesh it writes for the steps that read them next: the
+    // colours, the scores against the reference and on the held-out scans.
+    const bool keep_surface = cameras.has_value() || !ref.empty() || !split.heldout.empty();
     try {
         if (incremental && continuing) {
             MapToContinue from;
@@ -826,10 +829,10 @@ int run_map(const MapOptions& given_options) {
                 map_sequence_incremental(odometry_config, sequence, out / "odometry", "odometry");
             const std::vector<Eigen::Isometry3d>& poses = odometry_run->odometry->poses();
             write_kitti_poses(out / "poses.txt", poses);
-            batch_map = map_sequence(config, sequence.with_poses(poses), out, {}, &control,
-                                     cameras.has_value());
+            batch_map =
+                map_sequence(config, sequence.with_poses(poses), out, {}, &control, keep_surface);
         } else {
-            batch_map = map_sequence(config, sequence, out, {}, &control, cameras.has_value());
+            batch_map = map_sequence(config, sequence, out, {}, &control, keep_surface);
         }
     } catch (const Error&) {
         // A scan that cannot be read (a damaged message deep in a recording) leaves no empty
@@ -904,6 +907,7 @@ int run_map(const MapOptions& given_options) {
             batch_map && batch_map->products.written ? &*batch_map->products.written : nullptr;
         add_map_appearance(out, mapped_final, config, cameras, reflectance, written,
                            appearance_json);
+        if (written) written->level_set.reset();  // only the mesh is read again
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
     const NeuralSdf& sdf = incremental ? incremental_map->mapper->sdf() : batch_map->mapper->sdf();
@@ -1023,12 +1027,18 @@ int run_map(const MapOptions& given_options) {
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),
                 (out / "surface.vdb").c_str(), (out / "mesh.ply").c_str(), products.mesh.triangles);
     if (opt.profile) std::printf("%s", profile.format_table().c_str());
+    // Batch mode keeps the mesh it wrote (and the appearance step gave back): the scores below
+    // need not read mesh.ply again.
+    const TriangleMesh* kept_mesh =
+        batch_map && batch_map->products.written ? &batch_map->products.written->mesh : nullptr;
     const ScanOdometry* odometry = incremental_map ? incremental_map->odometry.get()
                                    : odometry_run  ? odometry_run->odometry.get()
                                                    : nullptr;
     if (!ref.empty()) {
         const auto t0 = std::chrono::steady_clock::now();
-        const TriangleMesh mesh = read_ply_mesh(out / "mesh.ply");
+        std::optional<TriangleMesh> read;
+        if (!kept_mesh) read = read_ply_mesh(out / "mesh.ply");
+        const TriangleMesh& mesh = kept_mesh ? *kept_mesh : *read;
         const TriangleMesh reference = read_ply_mesh(ref);
         // At the scene's threshold: 10 cm outdoors (the street's protocol), 1 mm for an object.
         const EvalConfig eval_config =
@@ -1049,7 +1059,7 @@ int run_map(const MapOptions& given_options) {
         json["seconds"]["eval"] = seconds_since(t0);
     }
     score_heldout(out / "mesh.ply", scored, split, opt.holdout_every, config.preprocess, json,
-                  "heldout", deskew ? &config.deskew : nullptr);
+                  "heldout", deskew ? &config.deskew : nullptr, kept_mesh);
     if (odometry && !split.heldout.empty()) {
         // The held-out scans at the data's poses also count the estimate's drift against them;
         // placed next to the mapped scan before each, they score the map alone.
@@ -1065,7 +1075,7 @@ int run_map(const MapOptions& given_options) {
             out / "mesh.ply",
             selected.with_poses(heldout_poses_local_to_estimate(selected, split, mapped_poses)),
             split, opt.holdout_every, config.preprocess, json, "heldout_local",
-            deskew ? &config.deskew : nullptr);
+            deskew ? &config.deskew : nullptr, kept_mesh);
     }
     if (appearance_json.contains("appearance")) {
         json["appearance"] = appearance_json["appearance"];

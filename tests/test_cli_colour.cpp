@@ -576,6 +576,24 @@ TEST(ColourCli, HeldOutImagesScoreTheColouredMapAboveTheBaseline) {
         << p.map_log;
 }
 
+// The held-out rays are scored on the mesh the run kept in memory, which the colour step took
+// over and gave back: `shine eval --heldout` on the mesh.ply it wrote gives the same figures.
+TEST(ColourCli, HeldOutRaysScoreTheMeshAsWrittenWithItsColours) {
+    const Products& p = products();
+    const nlohmann::json total = read_json(p.map / "stats.json").at("heldout").at("total");
+    std::string output;
+    ASSERT_TRUE(run_or_fail("eval --pred '" + (p.map / "mesh.ply").string() + "' --heldout '" +
+                                p.street.string() + "' --holdout-every " +
+                                std::to_string(kHoldoutEvery) + " --json",
+                            p.map.parent_path(), output));
+    const nlohmann::json again = nlohmann::json::parse(output).at("total");
+    EXPECT_GT(total.at("rays").get<int>(), 0);
+    EXPECT_EQ(again.at("rays"), total.at("rays"));
+    EXPECT_EQ(again.at("hits"), total.at("hits"));
+    EXPECT_EQ(again.at("within"), total.at("within"));
+    EXPECT_EQ(again.at("median_abs_error_m"), total.at("median_abs_error_m"));
+}
+
 TEST(ColourCli, AMapWithoutImagesOrIntensityIsUnchanged) {
     const Products& p = products();
     const std::string header = ply_header(p.plain_map / "mesh.ply");

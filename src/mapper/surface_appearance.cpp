@@ -156,9 +156,18 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
     // The mesh and the level set: taken over, or read side by side.
     TriangleMesh mesh;
     openvdb::FloatGrid::Ptr level_set;
+    // A mesh taken over goes back when this returns, as mesh.ply then holds it.
+    struct GiveBack {
+        TriangleMesh& mesh;
+        WrittenSurface* to = nullptr;
+        ~GiveBack() {
+            if (to) to->mesh = std::move(mesh);
+        }
+    } give_back{mesh};
     if (written && written->level_set) {
         mesh = std::move(written->mesh);
         level_set = std::move(written->level_set);
+        give_back.to = written;
     } else {
         tbb::parallel_invoke([&] { mesh = read_ply_mesh(mesh_path); },
                              [&] { level_set = read_level_set(surface_path); });

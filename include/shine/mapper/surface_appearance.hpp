@@ -68,7 +68,8 @@ void add_scan_reflectance(ReflectanceVoxels& voxels, const Scan& scan,
 /// intensity. `reflectance_map`: the scans' intensities already accumulated (add_scan_reflectance,
 /// in the map frame of mesh.ply, voxels of surface.vdb's size); null: read the scans again.
 /// `written`: the level set and mesh those two files hold (write_map_products), taken over
-/// instead of read back; null: read from OUT_DIR.
+/// instead of read back (null: read from OUT_DIR); the mesh is given back as mesh.ply then holds
+/// it (with its colours and reflectance), the level set is not.
 /// Throws IoError / DataError naming a broken image or file; the products are then left as they
 /// were.
 SurfaceAppearanceStats add_surface_appearance(
