@@ -96,13 +96,14 @@ double completion(const fs::path& out) {
 }
 
 // Measured with this configuration (8 + 6 scans, against the first drive's reference): the
-// continued map 95.20 % F (precision 93.21 %; 94.75 % and 92.33 % before the old drive voted on
-// the movers), the joint map 95.97 % (94.57, 97.41), the old map alone 96.16 % (95.08, 97.26). The
-// second drive's own surfaces, seen from another lane past movers, cost the precision; the old part
-// keeps its completion. Without the old rows held (an unregularised consolidation on the new drive
-// alone) the full street lost 3.5 points of completion.
-constexpr double kMaxFscoreBelowJoint = 0.02;     // 2 points (measured 0.76)
-constexpr double kMaxCompletionBelowOld = 0.005;  // 0.5 points (measured +0.04)
+// continued map 95.46 % F (precision 93.67 %, completion 97.32 %; 95.20 % and 93.21 % with the old
+// rows held at the importance cap, 94.75 % and 92.33 % before the old drive voted on the movers),
+// the joint map 95.96 %, the old map alone 96.13 % (completion 97.26 %). The second drive's own
+// surfaces, seen from another lane past movers, cost the precision; the old part keeps its
+// completion. Without the old rows held (an unregularised consolidation on the new drive alone)
+// the full street lost 3.5 points of completion.
+constexpr double kMaxFscoreBelowJoint = 0.01;     // 1 point (measured 0.50)
+constexpr double kMaxCompletionBelowOld = 0.005;  // 0.5 points (measured +0.06)
 
 TEST(CliMapFrom, ContinuedStreetScoresNearTheJointMapAndKeepsTheOldPart) {
     const fs::path d1 = first_drive();
@@ -155,8 +156,17 @@ TEST(CliMapFrom, ContinuedStreetScoresNearTheJointMapAndKeepsTheOldPart) {
     const nlohmann::json bare_stats = read_json(unvoted / "stats.json");
     EXPECT_GT(stats["from"]["old_viewpoints"].get<std::size_t>(), 0u);
     EXPECT_EQ(bare_stats["from"]["old_viewpoints"].get<std::size_t>(), 0u);
-    // Measured: 9081 points dropped against 6390, precision 93.21 against 92.31 %, F 95.20
-    // against 94.74 %.
+    std::printf(
+        "F-score: continued %.4f (precision %.4f, completion %.4f, %zu points dropped), "
+        "from map.vdb alone %.4f (precision %.4f, %zu dropped), joint %.4f, old %.4f "
+        "(completion %.4f)\n",
+        fscore(continued), stats["eval"]["precision"].get<double>(), completion(continued),
+        stats["dynamic"]["points_dropped"].get<std::size_t>(), fscore(unvoted),
+        bare_stats["eval"]["precision"].get<double>(),
+        bare_stats["dynamic"]["points_dropped"].get<std::size_t>(), fscore(joint), fscore(old),
+        completion(old));
+    // Measured: 9081 points dropped against 6390, precision 93.67 against 92.59 %, F 95.46
+    // against 94.79 %.
     EXPECT_GT(stats["dynamic"]["points_dropped"].get<std::size_t>(),
               bare_stats["dynamic"]["points_dropped"].get<std::size_t>() * 11 / 10);
     EXPECT_GT(stats["eval"]["precision"].get<double>(),

@@ -251,8 +251,9 @@ void IncrementalMapper::start_from(NeuralSdf&& old, const std::string& source) {
     config_.incremental.decoder_weights = source;
     config_.trainer.train_decoder = false;
     trainer_ = std::make_unique<Trainer>(*sdf_, config_.trainer, config_.sampling);
-    // Every old row at the cap Omega_m: the old scans are gone, so their converged rows are held
-    // as strongly as the regulariser holds any row (Eq. (5)); rows added later start at 0.
+    // Every old row held with incremental.old_rows_importance (at most the cap Omega_m): the old
+    // scans are gone, so their rows are anchored where they converged, loosely enough that the
+    // new drive can still improve what both drives see (Eq. (5)); rows added later start at 0.
     importance_ = ImportanceWeights(config_.incremental.importance, config_.octree.feature_dim);
     start_rows_ = sdf_->octree.num_corners();
     const FeatureTable& table = sdf_->octree.features();
@@ -281,8 +282,9 @@ ImportanceWeights IncrementalMapper::importance_held_old_rows() const {
     weights.resize(sdf_->octree.num_corners());
     std::vector<std::int32_t> rows(start_rows_);
     for (std::size_t i = 0; i < start_rows_; ++i) rows[i] = static_cast<std::int32_t>(i);
-    const std::vector<float> cap(start_rows_, weights.config().importance_cap);
-    weights.update_importance_rows(rows, cap, 1.0f);
+    const std::vector<float> held(start_rows_, std::min(config_.incremental.old_rows_importance,
+                                                        weights.config().importance_cap));
+    weights.update_importance_rows(rows, held, 1.0f);
     return weights;
 }
 

@@ -272,7 +272,8 @@ class IncrementalMapper {
     /// rays so that the next sync assembles them from the moved scans.
     void move_kept_scans(const std::vector<Eigen::Isometry3d>& corrections);
     /// Importance weights over the map's rows with the rows start_from() brought (below
-    /// start_rows_) at the cap Omega_m and the others at 0.
+    /// start_rows_) at incremental.old_rows_importance (at most the cap Omega_m) and the others
+    /// at 0.
     ImportanceWeights importance_held_old_rows() const;
     /// Throws Error naming `what` once release_training_state() has run.
     void require_training_state(const char* what) const;
