@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <thread>
 
 #include "shine/core/error.hpp"
@@ -120,9 +121,9 @@ void score_heldout(const std::filesystem::path& mesh_path, const ScanSequence& s
             deskew_with_sequence_poses(scan, selected, frame, *deskew, deskew_stats);
         };
     }
-    const HeldoutReport report =
-        mesh ? evaluate_heldout(*mesh, selected, split.heldout, config, prepare)
-             : evaluate_heldout(read_ply_mesh(mesh_path), selected, split.heldout, config, prepare);
+    std::optional<TriangleMesh> read;
+    if (!mesh) mesh = &read.emplace(read_ply_mesh(mesh_path));
+    const HeldoutReport report = evaluate_heldout(*mesh, selected, split.heldout, config, prepare);
     json[key] = nlohmann::json::parse(heldout_to_json(report));
     json[key]["every"] = every;
     json[key]["scans_deskewed"] = deskew_stats.scans_deskewed;
