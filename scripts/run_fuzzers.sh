@@ -11,10 +11,12 @@
 # Inputs found along the way are kept in build-fuzz/corpus/<target>/ (reused by the next run);
 # a failing input is saved as build-fuzz/artifacts/<target>/crash-* (or leak-*, timeout-*, oom-*)
 # and can be replayed with `build-fuzz/fuzz/<target> FILE`. Needs ShineVDB's own dependencies
-# (scripts/setup.sh installs them); installs clang and libFuzzer when missing (Debian 12).
+# (scripts/setup.sh installs them); installs clang and libFuzzer when missing (Debian 12). The
+# build is shared with `run_sanitizers.sh --readers` (scripts/clang_sanitized_build.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/run_at_most.sh
+. scripts/clang_sanitized_build.sh
 
 seconds="${1:-30}"
 [ $# -gt 0 ] && shift
@@ -25,27 +27,7 @@ targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
 jobs="${SHINE_BUILD_JOBS:-$(nproc)}"
 
-# clang and its libFuzzer runtime (libclang_rt.fuzzer-x86_64.a is in libclang-rt-14-dev).
-EXTRA_PACKAGES=(clang libclang-rt-14-dev)
-missing=()
-for p in "${EXTRA_PACKAGES[@]}"; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-    echo "run_fuzzers: installing ${missing[*]}"
-    SUDO=""
-    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
-fi
-
-# -O1 -g1 (line tables), as libFuzzer's documentation builds: reports still name file and line,
-# and the build is much shorter than with -O2 -g.
-CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-    -DSHINE_BUILD_FUZZERS=ON -DSHINE_BUILD_TESTS=OFF \
-    -DCMAKE_CXX_FLAGS="-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer" \
-    >/dev/null
+configure_clang_sanitized_build
 cmake --build build-fuzz --target "${targets[@]}" -j"$jobs"
 
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
