@@ -355,6 +355,13 @@ const RegisterCommand kLocalizeCommand(17, [](CLI::App& app, Action& action) {
     cmd->add_option("--icp-coarse-lookup-voxel-m", opt->config.icp_coarse_lookup_voxel_m,
                     "and in its coarse stage by voxels of this size (0: the k-d tree), m")
         ->capture_default_str();
+    cmd->add_option("--icp-converged-m", opt->config.icp_converged_translation_m,
+                    "each stage of the recovery's ICP stops when a step moves the pose less than "
+                    "this (the SDF registration finishes the pose), m")
+        ->capture_default_str();
+    cmd->add_option("--icp-converged-rad", opt->config.icp_converged_rotation_rad,
+                    "and turns it less than this, rad")
+        ->capture_default_str();
     cmd->add_option("--search-spacing-m", opt->config.search_spacing_m,
                     "grid spacing of a search's horizontal offsets, m")
         ->capture_default_str();

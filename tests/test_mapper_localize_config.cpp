@@ -43,6 +43,10 @@ TEST(LocalizeConfig, EachBadSettingIsNamedUnderLocalize) {
         {"icp_lookup_voxel_m", [](shine::LocalizeConfig& c) { c.icp_lookup_voxel_m = -0.25; }},
         {"icp_coarse_lookup_voxel_m",
          [](shine::LocalizeConfig& c) { c.icp_coarse_lookup_voxel_m = 0.001; }},
+        {"icp_converged_translation_m",
+         [](shine::LocalizeConfig& c) { c.icp_converged_translation_m = 0.0; }},
+        {"icp_converged_translation_m",
+         [](shine::LocalizeConfig& c) { c.icp_converged_rotation_rad = -1e-3; }},
     };
     for (const BadSetting& setting : bad) {
         shine::LocalizeConfig config;

@@ -166,6 +166,9 @@ void validate(const LocalizeConfig& c) {
     require_localize(c.icp_correspondence_m > 0.0 && c.icp_coarse_correspondence_m > 0.0,
                      "icp_correspondence_m", "and icp_coarse_correspondence_m must be positive");
     require_localize(c.icp_kernel_scale_m > 0.0, "icp_kernel_scale_m", "must be positive");
+    require_localize(c.icp_converged_translation_m > 0.0 && c.icp_converged_rotation_rad > 0.0,
+                     "icp_converged_translation_m",
+                     "and icp_converged_rotation_rad must be positive");
     require_localize(c.icp_min_inlier_ratio >= 0.0 && c.icp_min_inlier_ratio <= 1.0,
                      "icp_min_inlier_ratio", "must be within [0, 1]");
     require_localize(c.search_radius_m >= 0.0, "search_radius_m", "must be >= 0");
@@ -263,8 +266,8 @@ MapLocalizer::Attempt MapLocalizer::recover(const std::vector<Eigen::Vector3f>& 
     icp.solver.max_iterations = 30;
     icp.solver.max_condition_number = config_.max_condition_number;
     icp.solver.kernel.type = RobustKernelType::kGemanMcClure;
-    icp.solver.converged_translation_m = 1e-3;
-    icp.solver.converged_rotation_rad = 1e-4;
+    icp.solver.converged_translation_m = config_.icp_converged_translation_m;
+    icp.solver.converged_rotation_rad = config_.icp_converged_rotation_rad;
     int iterations = 0;
     // Each point's match at the last pose tried bounds its next search, across every start,
     // stage, iteration and fitness of this recovery, as the odometry's ICP does: the same matches
