@@ -56,10 +56,12 @@ std::string fine_config() {
     return path.string();
 }
 
+/// Without the evaluation against the street's reference (2 of a 4-scan run's 8 s): the
+/// resumed run's mesh is compared with the reference run's byte for byte instead.
 std::string map_args(const fs::path& out, const std::string& extra,
                      const std::string& config = fast_config()) {
-    return "map '" + street().string() + "' -o '" + out.string() + "' -c '" + config + "' -q " +
-           extra;
+    return "map '" + street().string() + "' -o '" + out.string() + "' -c '" + config +
+           "' -q --no-eval " + extra;
 }
 
 /// Maps without interruption (once per configuration and process).
@@ -93,8 +95,8 @@ void expect_same_result(const fs::path& resumed, const fs::path& reference) {
     const shine::LoadedMap b = shine::load_neural_map(reference / "map.vdb");
     EXPECT_EQ(a.sdf.octree.features().to_floats(), b.sdf.octree.features().to_floats());
     EXPECT_EQ(a.sdf.decoder.params(), b.sdf.decoder.params());
-    EXPECT_EQ(read_json(resumed / "stats.json").at("eval").at("fscore"),
-              read_json(reference / "stats.json").at("eval").at("fscore"));
+    EXPECT_EQ(read_json(resumed / "stats.json").at("map").at("corners"),
+              read_json(reference / "stats.json").at("map").at("corners"));
 }
 
 }  // namespace
@@ -173,7 +175,7 @@ TEST(Resume, IncrementalRunReplayingEarlierScansContinuesToTheSameMap) {
                              "  consolidation_steps: 100\n";
     const auto args = [&](const fs::path& out, const std::string& extra) {
         return "map '" + street().string() + "' -o '" + out.string() + "' -c '" + replay.string() +
-               "' -q --mode incremental --threads 2 " + extra;
+               "' -q --no-eval --mode incremental --threads 2 " + extra;
     };
     const fs::path reference = test_dir() / "reference_replay";
     fs::remove_all(reference);
