@@ -39,14 +39,15 @@ constexpr int kLocalWorkers = 4;
 // use kConfigYaml, the defaults before the speed work (issue 6): 100 steps per scan at the
 // learning rate 0.01 on scans thinned to 0.05 m, not the default 40 steps at 0.02 on scans thinned
 // to 0.2 m; and 250 consolidation steps instead of 1000, which each of the 8 tiles runs (the test
-// took 160 s alone with 1000, 91 s with 250). The seam check below compares the SDF's largest changes at the borders with those
-// inside the tiles, 15 cm above the road, outside the surface band: there the default's field,
-// trained on the thinner scans with fewer steps, varies by up to 28-33 mm between samples 5 cm
-// apart (17 mm with kConfigYaml), and the control's 3 cm step would not stand out. Each tile spends
-// a scan's whole training budget on the part of the scan inside its crop box, so its rays get more
-// steps than in the single run and the merged map scores higher (measured: +0.66 points here with 250
-// consolidation steps, +0.03 with 1000; +0.64 on the 50-frame street; docs/tiles.md): the bound is on the loss, kMaxFscoreLoss below the single
-// run, and the gain is printed.
+// took 160 s alone with 1000, 91 s with 250). The seam check below compares the SDF's largest
+// changes at the borders with those inside the tiles, 15 cm above the road, outside the surface
+// band: there the default's field, trained on the thinner scans with fewer steps, varies by up to
+// 28-33 mm between samples 5 cm apart (17 mm with kConfigYaml), and the control's 3 cm step would
+// not stand out. Each tile spends a scan's whole training budget on the part of the scan inside its
+// crop box, so its rays get more steps than in the single run and the merged map scores higher
+// (measured: +0.66 points here with 250 consolidation steps, +0.03 with 1000; +0.64 on the 50-frame
+// street; docs/tiles.md): the bound is on the loss, kMaxFscoreLoss below the single run, and the
+// gain is printed.
 constexpr double kMaxFscoreLoss = 0.01;
 constexpr const char* kConfigYaml =
     "incremental:\n  iterations_per_frame: 100\n  learning_rate: 0.01\n  consolidation_steps: 250\n"
@@ -233,11 +234,14 @@ TEST(CliTiles, MergeRejectsIncompatibleOrBadInput) {
     const fs::path street = dir / "street";
     simulate_street(street, /*frames=*/2, kStreetSeed);
     const fs::path config = dir / "config.yaml";
-    std::ofstream(config) << "incremental:\n  iterations_per_frame: 2\nmap:\n  origin_world_m: "
-                             "[0, 0, 0]\n";
+    // Two steps a scan and ten consolidation steps: the maps need only exist (the default 1000
+    // consolidation steps took most of this test's 28 s).
+    std::ofstream(config) << "incremental:\n  iterations_per_frame: 2\n  consolidation_steps: "
+                             "10\nmap:\n  origin_world_m: [0, 0, 0]\n";
     const fs::path far_config = dir / "far_config.yaml";
-    std::ofstream(far_config) << "incremental:\n  iterations_per_frame: 2\nmap:\n  "
-                                 "origin_world_m: [1000, 0, 0]\n";
+    std::ofstream(far_config) << "incremental:\n  iterations_per_frame: 2\n  "
+                                 "consolidation_steps: 10\nmap:\n  origin_world_m: [1000, 0, "
+                                 "0]\n";
     // a: the reference; b: another leaf size; c: batch mode (its decoder is trained, not the
     // frozen one); d: another origin.
     const std::string common = "' --no-eval -q --threads 2 ";
