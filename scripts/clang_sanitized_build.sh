@@ -3,7 +3,7 @@
 # instrumentation (-fsanitize=fuzzer-no-link) of every library, for both the fuzz targets and
 # the readers' test programs. One build serves both checks: CI compiled the libraries twice
 # before (gcc for the tests, clang for the fuzzers; 6 and 7.5 minutes on 2 cores), and the tests
-# now add 2.5 minutes to the fuzzers' build. The coverage instrumentation only adds counters: a
+# now add 2.4 minutes to the fuzzers' build. The coverage instrumentation only adds counters: a
 # test program links no libFuzzer and runs as it would without it.
 #
 #   configure_clang_sanitized_build   (installs clang and libclang-rt-14-dev when missing)
