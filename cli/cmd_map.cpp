@@ -857,8 +857,8 @@ int run_map(const MapOptions& given_options) {
             {"corners", batch_map->warm_start_corners},
             {"from_step", batch_map->warm_start_step},
             {"steps_trained", batch_map->mapper->stats().iterations},
-            {"shift_after_first_round_m",
-             PoseRefinementConfig::shift_after_first_round_m(batch_map->refinement)}};
+            {"relative_change_m", batch_map->relative_pose_change.median_translation_m},
+            {"relative_change_deg", batch_map->relative_pose_change.median_rotation_deg}};
         const PoseRefinementRound& last = batch_map->refinement.back();
         std::printf(
             "poses refined with the map in %.1f s: %zu rounds, the last moved %zu scans by %.3f m "

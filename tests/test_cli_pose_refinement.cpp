@@ -69,6 +69,11 @@ TEST(CliPoseRefinement, NoisyPosesAreRefinedToAThirdOfTheirErrorAndTheMapRecover
     const nlohmann::json stats = read_json(refined / "stats.json");
     ASSERT_TRUE(stats.contains("refine")) << stats.dump(2);
     EXPECT_EQ(stats["refine"]["rounds"].size(), 4u);
+    // Noise drawn for each scan alone changes neighbours' relative poses by about the noise:
+    // the first map is blurred, and the map at the refined poses is made from scratch.
+    const nlohmann::json& warm = stats["refine"]["warm_start"];
+    EXPECT_FALSE(warm["used"].get<bool>()) << warm.dump();
+    EXPECT_GT(warm["relative_change_m"].get<double>(), 0.025) << warm.dump();
 
     const fs::path kept = test_dir() / "kept";
     const CliResult plain =

@@ -208,7 +208,7 @@ TEST(MapperConfigScale, AutomaticScheduleFollowsTheScenesCorners) {
     EXPECT_EQ(finalized("training:\n  iterations: 1000\n").batch_schedule(1000).iterations, 1000);
 }
 
-TEST(BatchDefaults, OutdoorKeepsEveryPointAndFineLeavesBakeInsideLevelOneUnlessSet) {
+TEST(BatchDefaults, OutdoorKeepsEveryPointDropsTheEikonalTermAndFineLeavesBakeInsideLevelOne) {
     const auto batch_config = [](double leaf_size_m, const char* set_key, const char* scene) {
         MapperConfig config;
         config.octree.leaf_size_m = leaf_size_m;
@@ -239,7 +239,21 @@ TEST(BatchDefaults, OutdoorKeepsEveryPointAndFineLeavesBakeInsideLevelOneUnlessS
     EXPECT_EQ(batch_config(0.1, "preprocess.voxel_points", "outdoor").preprocess.voxel_points,
               VoxelPoints::kNearest);
     EXPECT_EQ(batch_config(0.1, "preprocess.voxel_points", "outdoor").bake.mask_level, 1);
+    // No Eikonal term outdoors at any leaf with the automatic schedule, unless the weight is
+    // set; a set step count keeps it.
+    EXPECT_EQ(fine.trainer.eikonal_weight, 0.0f);
+    EXPECT_EQ(street.trainer.eikonal_weight, 0.0f);
+    EXPECT_EQ(batch_config(0.2, "training.eikonal_weight", "outdoor").trainer.eikonal_weight,
+              TrainerConfig{}.eikonal_weight);
+    MapperConfig set_steps;
+    set_steps.iterations = 20;
+    set_steps.mark_set("training.iterations");
+    set_steps.finalize();
+    apply_batch_defaults(set_steps);
+    EXPECT_EQ(set_steps.trainer.eikonal_weight, TrainerConfig{}.eikonal_weight);
     const MapperConfig indoor = batch_config(0.05, nullptr, "indoor");
+    EXPECT_EQ(indoor.trainer.eikonal_weight, TrainerConfig{}.eikonal_weight);
+    EXPECT_GT(indoor.trainer.eikonal_weight, 0.0f);
     EXPECT_EQ(indoor.bake.mask_level, 0);
     EXPECT_EQ(indoor.preprocess.voxel_points, VoxelPoints::kNearest);
     EXPECT_EQ(indoor.sampling.every_point_share, SamplingConfig{}.every_point_share);

@@ -1,6 +1,6 @@
 // Pose refinement's pieces that need no trained map (mapper/pose_refinement.hpp): scans moved
 // rigidly with their rays, the held-out rule (a held-out scan's pose takes only the corrections
-// of the mapped scans around it), and the schedule of the rounds.
+// of the mapped scans around it), the schedule of the rounds, and the warm start's yardstick.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -102,4 +102,58 @@ TEST(PoseRefinement, RoundsAreSpreadOverTheStepsCoarseToFine) {
     EXPECT_DOUBLE_EQ(fine.voxel_size_m, config.voxel_size_m / 2);
     EXPECT_DOUBLE_EQ(fine.kernel_scale_m, config.kernel_scale_m / 2);
     EXPECT_DOUBLE_EQ(fine.max_range_m, 40.0);
+}
+
+// The warm start's yardstick: how refinement changed consecutive scans' relative poses. A drift
+// that moves every scan alike (the same correction for all, or one growing smoothly) changes
+// neighbours little; independent noise per scan changes them by about the noise.
+TEST(PoseRefinement, RelativePoseChangeSeesNoiseBetweenNeighboursNotACommonCorrection) {
+    std::vector<Eigen::Isometry3d> given;
+    for (int k = 0; k < 9; ++k) given.push_back(pose(1.0 * k, 0.2 * k, 3.0 * k));
+
+    // One correction for every scan (the frame moved as a whole): relative poses unchanged.
+    const Eigen::Isometry3d common = pose(0.4, -0.3, 2.0);
+    std::vector<Eigen::Isometry3d> moved;
+    for (const Eigen::Isometry3d& T : given) moved.push_back(common * T);
+    const shine::RelativePoseChange same = shine::relative_pose_change(given, moved);
+    EXPECT_NEAR(same.median_translation_m, 0.0, kExactM);
+    EXPECT_NEAR(same.median_rotation_deg, 0.0, 1e-6);
+
+    // Every other scan shifted 5 cm sideways in its own frame and turned 0.3 deg: every pair
+    // differs by exactly that shift and turn.
+    std::vector<Eigen::Isometry3d> noisy = given;
+    const Eigen::Isometry3d jolt = [] {
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        T.linear() = Eigen::AngleAxisd(0.3 * M_PI / 180.0, Eigen::Vector3d::UnitX()).matrix();
+        T.translation() = Eigen::Vector3d(0.0, 0.05, 0.0);
+        return T;
+    }();
+    for (std::size_t k = 1; k < noisy.size(); k += 2) noisy[k] = noisy[k] * jolt;
+    const shine::RelativePoseChange jitter = shine::relative_pose_change(given, noisy);
+    EXPECT_NEAR(jitter.median_rotation_deg, 0.3, 1e-6);
+    // From an unmoved scan to a moved one the change is the jolt itself (5 cm); back again its
+    // inverse seen from the scan before, whose turn about a lever of about a metre adds ~5 mm.
+    EXPECT_NEAR(jitter.median_translation_m, 0.05, 0.006);
+
+    shine::PoseRefinementConfig config;
+    EXPECT_TRUE(config.warm_start_fits(same));
+    EXPECT_FALSE(config.warm_start_fits(jitter));
+    // Either bound alone refuses it: a turn without a shift, a shift without a turn.
+    EXPECT_FALSE(config.warm_start_fits({0.0, 2 * config.warm_start_max_relative_deg}));
+    EXPECT_FALSE(config.warm_start_fits({2 * config.warm_start_max_relative_m, 0.0}));
+    EXPECT_TRUE(config.warm_start_fits(
+        {config.warm_start_max_relative_m, config.warm_start_max_relative_deg}));
+    config.warm_start = false;
+    EXPECT_FALSE(config.warm_start_fits(same));
+    // The length bound follows the leaf, the angle does not.
+    const shine::PoseRefinementConfig fine = shine::PoseRefinementConfig{}.at_leaf(0.1, 1.0, 40.0);
+    EXPECT_DOUBLE_EQ(fine.warm_start_max_relative_m,
+                     shine::PoseRefinementConfig{}.warm_start_max_relative_m / 2);
+    EXPECT_DOUBLE_EQ(fine.warm_start_max_relative_deg,
+                     shine::PoseRefinementConfig{}.warm_start_max_relative_deg);
+
+    EXPECT_THROW(shine::relative_pose_change(given, std::vector<Eigen::Isometry3d>(3)),
+                 shine::DataError);
+    const shine::RelativePoseChange one = shine::relative_pose_change({given[0]}, {moved[0]});
+    EXPECT_EQ(one.median_translation_m, 0.0);
 }

@@ -307,6 +307,8 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
 
         BenchRow row = shine_row;
         fill_shine_row(row, run.mapper->stats(), run.mapper->sdf(), dir, wall_seconds);
+        // A warm-started map (pose_refinement.hpp) took its first steps from the first phase.
+        if (run.warm_start_corners > 0) row.iterations += run.warm_start_step;
         const std::size_t triangles = run.products.mesh.triangles;
         run.mapper.reset();  // its memory goes to the evaluation and to incremental mode
         Progress progress("shine " + tag, 1);

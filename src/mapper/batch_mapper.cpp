@@ -30,6 +30,12 @@ void apply_batch_defaults(MapperConfig& config) {
     if (!config.is_set("preprocess.voxel_points")) {
         config.preprocess.voxel_points = VoxelPoints::kAll;
     }
+    const bool automatic_schedule = config.iterations < 0 && config.trainer.batch_size == 0;
+    if (automatic_schedule &&
+        config.holds_default("training.eikonal_weight", config.trainer.eikonal_weight,
+                             TrainerConfig{}.eikonal_weight)) {
+        config.trainer.eikonal_weight = 0.0f;
+    }
     if (!fine &&
         config.holds_default("sampling.every_point_share", config.sampling.every_point_share,
                              SamplingConfig{}.every_point_share)) {
@@ -253,6 +259,7 @@ bool BatchMapper::run_steps(int until, bool refining,
         while (refining && static_cast<int>(rounds_.size()) < refine.rounds &&
                refine.round_step(static_cast<int>(rounds_.size()), iterations) <= step) {
             PoseRefinementRound round;
+            round_start_poses_.push_back(poses_map_);  // the poses the steps before trained at
             std::vector<Eigen::Isometry3d> refined = refine_scan_poses(
                 *sdf_, rays_, poses_map_, refine, static_cast<int>(rounds_.size()), &round);
             move_scans(rays_, poses_map_, refined);
@@ -363,6 +370,18 @@ std::vector<Eigen::Isometry3d> BatchMapper::poses_world() const {
     std::vector<Eigen::Isometry3d> poses = poses_map_;
     for (Eigen::Isometry3d& T : poses) T.translation() += sdf_->origin_world_m;
     return poses;
+}
+
+RelativePoseChange BatchMapper::refinement_relative_change() const {
+    RelativePoseChange largest;
+    for (const std::vector<Eigen::Isometry3d>& trained_at : round_start_poses_) {
+        const RelativePoseChange change = relative_pose_change(trained_at, poses_map_);
+        largest.median_translation_m =
+            std::max(largest.median_translation_m, change.median_translation_m);
+        largest.median_rotation_deg =
+            std::max(largest.median_rotation_deg, change.median_rotation_deg);
+    }
+    return largest;
 }
 
 int BatchMapper::planned_iterations() const {

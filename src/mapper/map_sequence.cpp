@@ -126,12 +126,10 @@ void add_scans_loading_ahead(std::size_t count, const Load& load, const Add& add
 /// is off here: at poses off by centimetres other scans see through true surfaces, and points
 /// it drops are lost to the map made at the refined poses.
 /// A stop request (control) ends it with a loading-phase checkpoint: a resumed run refines again.
-std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
-                                                     const ScanSequence& sequence,
-                                                     const std::string& progress_tag,
-                                                     const RunControl* control,
-                                                     std::vector<PoseRefinementRound>& rounds,
-                                                     std::unique_ptr<NeuralSdf>* first_map) {
+std::vector<Eigen::Isometry3d> refine_sequence_poses(
+    const MapperConfig& config, const ScanSequence& sequence, const std::string& progress_tag,
+    const RunControl* control, std::vector<PoseRefinementRound>& rounds,
+    std::unique_ptr<NeuralSdf>* first_map, RelativePoseChange& relative_change) {
     MapperConfig first = config;
     first.dynamic.enabled = false;
     BatchMapper mapper(first);
@@ -196,6 +194,7 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(const MapperConfig& config,
         progress.finish(detail);
     }
     rounds = mapper.refinement_rounds();
+    relative_change = mapper.refinement_relative_change();
     if (first_map) *first_map = std::make_unique<NeuralSdf>(mapper.sdf().clone());
     return poses_world;
 }
@@ -215,13 +214,16 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
     std::unique_ptr<NeuralSdf> first_map;  // with refine.warm_start: where the map starts from
     if (refine.rounds > 0 && sequence.size() >= 3) {
         const auto t0 = std::chrono::steady_clock::now();
-        result.refined_poses_world =
-            refine_sequence_poses(config, sequence, progress_tag, control, result.refinement,
-                                  refine.warm_start ? &first_map : nullptr);
+        result.refined_poses_world = refine_sequence_poses(
+            config, sequence, progress_tag, control, result.refinement,
+            refine.warm_start ? &first_map : nullptr, result.relative_pose_change);
         result.refine_seconds = seconds_since(t0);
+        // The first map is reused only where its surfaces were sharp: where the poses it was
+        // trained at differ little from the refined ones between consecutive scans.
+        if (!config.scaled_refinement().warm_start_fits(result.relative_pose_change)) {
+            first_map.reset();
+        }
         sequence = sequence.with_poses(result.refined_poses_world);
-        // The first map is reused only where it was trained at poses close to the refined ones.
-        if (!config.scaled_refinement().warm_start_fits(result.refinement)) first_map.reset();
     }
     config.refine.rounds = 0;
     result.mapper = std::make_unique<BatchMapper>(config);

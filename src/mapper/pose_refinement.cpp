@@ -4,12 +4,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <utility>
 
 #include "shine/core/error.hpp"
 #include "shine/core/median.hpp"
 #include "shine/mapper/neural_sdf_field.hpp"
 #include "shine/odometry/registration_points.hpp"
 #include "shine/odometry/sdf_registration.hpp"
+#include "shine/odometry/se3.hpp"
 #include "shine/odometry/trajectory_error.hpp"
 
 namespace shine {
@@ -43,7 +45,7 @@ PoseRefinementConfig PoseRefinementConfig::at_leaf(double leaf_size_m, double mi
     scaled.kernel_scale_m *= scale;
     scaled.coarse_kernel_scale_m *= scale;
     scaled.max_correction_m *= scale;
-    scaled.warm_start_max_shift_m *= scale;
+    scaled.warm_start_max_relative_m *= scale;
     scaled.min_range_m = min_range;
     scaled.max_range_m = max_range;
     return scaled;
@@ -55,16 +57,32 @@ double PoseRefinementConfig::round_kernel_scale_m(int round) const {
     return coarse_kernel_scale_m * std::pow(kernel_scale_m / coarse_kernel_scale_m, w);
 }
 
-double PoseRefinementConfig::shift_after_first_round_m(
-    const std::vector<PoseRefinementRound>& rounds) {
-    double shift_m = 0.0;
-    for (std::size_t r = 1; r < rounds.size(); ++r) shift_m += rounds[r].median_translation_m;
-    return shift_m;
+RelativePoseChange relative_pose_change(const std::vector<Eigen::Isometry3d>& given,
+                                        const std::vector<Eigen::Isometry3d>& refined) {
+    if (given.size() != refined.size()) {
+        throw DataError("pose refinement: " + std::to_string(refined.size()) +
+                        " refined poses for " + std::to_string(given.size()) + " given ones");
+    }
+    RelativePoseChange change;
+    if (given.size() < 2) return change;
+    std::vector<double> translations_m, rotations_deg;
+    translations_m.reserve(given.size() - 1);
+    rotations_deg.reserve(given.size() - 1);
+    for (std::size_t k = 0; k + 1 < given.size(); ++k) {
+        const Eigen::Isometry3d given_motion = given[k].inverse() * given[k + 1];
+        const Eigen::Isometry3d refined_motion = refined[k].inverse() * refined[k + 1];
+        const Eigen::Isometry3d difference = given_motion.inverse() * refined_motion;
+        translations_m.push_back(difference.translation().norm());
+        rotations_deg.push_back(rotation_angle_rad(difference) * 180.0 / M_PI);
+    }
+    change.median_translation_m = median(std::move(translations_m));
+    change.median_rotation_deg = median(std::move(rotations_deg));
+    return change;
 }
 
-bool PoseRefinementConfig::warm_start_fits(const std::vector<PoseRefinementRound>& rounds) const {
-    return warm_start && !rounds.empty() &&
-           shift_after_first_round_m(rounds) <= warm_start_max_shift_m;
+bool PoseRefinementConfig::warm_start_fits(const RelativePoseChange& change) const {
+    return warm_start && change.median_translation_m <= warm_start_max_relative_m &&
+           change.median_rotation_deg <= warm_start_max_relative_deg;
 }
 
 std::vector<Eigen::Isometry3d> refine_scan_poses(const NeuralSdf& sdf, const RaySet& rays,

@@ -51,9 +51,11 @@ struct BenchHeldout {
 /// Memory, time and accuracy of one method at one resolution.
 struct BenchRow {
     BenchMethod method = BenchMethod::kShineVdb;
-    double size_m = 0.0;         ///< leaf size (ShineVDB) or voxel size (TSDF)
-    std::size_t frames = 0;      ///< scans mapped
-    std::size_t iterations = 0;  ///< ShineVDB optimisation steps run (0 for TSDF)
+    double size_m = 0.0;     ///< leaf size (ShineVDB) or voxel size (TSDF)
+    std::size_t frames = 0;  ///< scans mapped
+    /// ShineVDB optimisation steps of the map (0 for TSDF): with a warm start from pose
+    /// refinement's first phase, its steps up to the warm start and the steps after it.
+    std::size_t iterations = 0;
     std::size_t map_bytes = 0;   ///< ShineVDB: features + OpenVDB structure + decoder
                                  ///< (NeuralSdf::memory_bytes); TSDF: memUsage() of TSDF + weight
     std::size_t file_bytes = 0;  ///< map.vdb or tsdf.vdb on disk

@@ -23,6 +23,7 @@
 #include "shine/mapper/batch_mapper.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/mapper_config.hpp"
+#include "shine/mapper/pose_refinement.hpp"
 #include "shine/mapper/sequence_deskew.hpp"
 #include "shine/mapper/stage_profile.hpp"
 #include "shine/mapper/written_surface.hpp"
@@ -58,6 +59,8 @@ struct SequenceMap {
     std::vector<Eigen::Isometry3d> refined_poses_world;
     std::vector<PoseRefinementRound> refinement;
     double refine_seconds = 0.0;
+    /// How refinement changed consecutive scans' relative poses (decides the warm start).
+    RelativePoseChange relative_pose_change;
     /// With refine.warm_start: the corners whose features the map took from the first phase's,
     /// and the step its training started at (the steps before it count as done).
     std::size_t warm_start_corners = 0;

@@ -32,6 +32,18 @@ namespace shine {
 /// Settings of pose refinement (YAML section `refine`).
 struct PoseRefinementRound;
 
+/// How refinement changed the relative pose of consecutive scans (given T_a^-1 T_b against
+/// refined T_a^-1 T_b, scan a then scan b): medians over the pairs.
+struct RelativePoseChange {
+    double median_translation_m = 0.0;
+    double median_rotation_deg = 0.0;
+};
+
+/// RelativePoseChange of `refined` against `given` (one pose each per scan, in scan order; the
+/// world frames may differ). Fewer than two scans: zeros. Throws DataError on a count mismatch.
+RelativePoseChange relative_pose_change(const std::vector<Eigen::Isometry3d>& given,
+                                        const std::vector<Eigen::Isometry3d>& refined);
+
 struct PoseRefinementConfig {
     /// Rounds of registration during batch training, evenly spread between first_fraction and
     /// last_fraction of the steps; 0 turns refinement off.
@@ -59,14 +71,22 @@ struct PoseRefinementConfig {
     double max_correction_m = 1.0;    ///< larger corrections are rejected
     double max_correction_deg = 5.0;  ///< larger corrections are rejected
     /// The map at the refined poses starts from the first phase's map and trains the steps after
-    /// the last round's (map_sequence), where that map was trained at poses close to the refined
-    /// ones: the rounds after the first moved the scans by at most warm_start_max_shift_m (the
-    /// sum of their median translations). Otherwise, or with false, it trains every step from
-    /// scratch. Measured (docs/field.md): on the real drive and walk the later rounds move
-    /// 12-15 mm and the warm start scores as the cold one; on a street with 5 cm / 0.3 deg pose
-    /// noise they move 50 mm and the warm-started map lost 3.5 points of F-score.
+    /// the last round's (map_sequence), where that map's surfaces were sharp: where the poses it
+    /// trained at (the given ones before the first round, each round's before the next) differ
+    /// from the refined ones in the relative pose of consecutive scans by at most
+    /// warm_start_max_relative_m and warm_start_max_relative_deg (the medians over the pairs,
+    /// relative_pose_change(), the largest over those stretches:
+    /// BatchMapper::refinement_relative_change()). Poses off by a smooth drift (real odometry)
+    /// leave the first map sharp but bent, and the steps after the warm start straighten it;
+    /// poses off by independent noise per scan leave it blurred, and the blur stays. Otherwise,
+    /// or with false, it trains every step from scratch. Measured (docs/field.md): 9-13 mm and
+    /// 0.05-0.07 deg on the real drive and walk, where the warm start scored as the cold one or
+    /// better; 54 / 109 mm and 0.36 / 0.72 deg on streets with 2.5 cm / 0.15 deg and 5 cm /
+    /// 0.3 deg of pose noise, where it lost 2.3 / 3.4 points of F-score. The bounds sit between
+    /// the two kinds (the length scaled with the leaf).
     bool warm_start = true;
-    double warm_start_max_shift_m = 0.02;
+    double warm_start_max_relative_m = 0.025;
+    double warm_start_max_relative_deg = 0.15;
     /// Incremental mode: its consolidation refines the kept scans' poses too, in place
     /// (IncrementalMapper::consolidate), with `rounds` rounds spread over its steps as above.
     /// Measured at given poses (docs/field.md): held-out rays within 10 cm 70.93 -> 74.50 % on
@@ -83,11 +103,9 @@ struct PoseRefinementConfig {
     int round_step(int round, int iterations) const;
     /// The kernel scale of round r (0-based).
     double round_kernel_scale_m(int round) const;
-    /// Whether the map at the refined poses may start from the first phase's map, after
-    /// `rounds` (warm_start and warm_start_max_shift_m).
-    bool warm_start_fits(const std::vector<PoseRefinementRound>& rounds) const;
-    /// The sum of the median translations of the rounds after the first.
-    static double shift_after_first_round_m(const std::vector<PoseRefinementRound>& rounds);
+    /// Whether the map at the refined poses may start from the first phase's map, whose training
+    /// poses differ from the refined ones by `change` (warm_start and its bounds).
+    bool warm_start_fits(const RelativePoseChange& change) const;
 };
 
 /// What one round did.
