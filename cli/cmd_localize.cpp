@@ -368,6 +368,10 @@ const RegisterCommand kLocalizeCommand(17, [](CLI::App& app, Action& action) {
     cmd->add_option("--search-headings", opt->config.search_headings,
                     "headings a search tries, 360/N degrees apart")
         ->capture_default_str();
+    cmd->add_option("--deep-search-registrations", opt->config.deep_search_registrations,
+                    "when a search's best candidates fail on the first lost scan of a run, the "
+                    "ones ranked after them up to this many are registered too (0: not)")
+        ->capture_default_str();
     cmd->add_option("--max-points", opt->config.max_points,
                     "registration points a scan at most when tracking (time grows with them)")
         ->capture_default_str();

@@ -47,6 +47,8 @@ TEST(LocalizeConfig, EachBadSettingIsNamedUnderLocalize) {
          [](shine::LocalizeConfig& c) { c.icp_converged_translation_m = 0.0; }},
         {"icp_converged_translation_m",
          [](shine::LocalizeConfig& c) { c.icp_converged_rotation_rad = -1e-3; }},
+        {"deep_search_registrations",
+         [](shine::LocalizeConfig& c) { c.deep_search_registrations = -1; }},
     };
     for (const BadSetting& setting : bad) {
         shine::LocalizeConfig config;

@@ -177,6 +177,7 @@ void validate(const LocalizeConfig& c) {
     require_localize(c.search_headings >= 1, "search_headings", "must be >= 1");
     require_localize(c.search_points >= 10, "search_points", "must be >= 10");
     require_localize(c.search_registrations >= 1, "search_registrations", "must be >= 1");
+    require_localize(c.deep_search_registrations >= 0, "deep_search_registrations", "must be >= 0");
     require_localize(c.place_spacing_m > 0.0, "place_spacing_m", "must be positive");
     require_localize(c.global_search_after_failures >= 1, "global_search_after_failures",
                      "must be >= 1");
@@ -466,7 +467,7 @@ std::vector<double> MapLocalizer::surface_scores(
 MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& points,
                                            const std::vector<Eigen::Vector3f>& track_points,
                                            const std::vector<Eigen::Isometry3d>& centres,
-                                           double radius_m) const {
+                                           double radius_m, int first_rank, int end_rank) const {
     // The candidates: each centre moved on a horizontal grid within search_radius_m, turned to
     // each heading.
     std::vector<Eigen::Vector3d> offsets;
@@ -493,8 +494,9 @@ MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& p
         surface_scores(thinned(points, config_.search_points), candidates);
     std::vector<std::size_t> order(candidates.size());
     std::iota(order.begin(), order.end(), std::size_t{0});
+    // The candidates ranked [first_rank, end_rank) by score are registered.
     const std::size_t best =
-        std::min<std::size_t>(order.size(), static_cast<std::size_t>(config_.search_registrations));
+        std::min<std::size_t>(order.size(), static_cast<std::size_t>(end_rank));
     std::partial_sort(order.begin(), order.begin() + best, order.end(),
                       [&](std::size_t a, std::size_t b) {
                           return scores[a] != scores[b] ? scores[a] > scores[b] : a < b;
@@ -503,7 +505,7 @@ MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& p
     chosen.pose = centres.empty() ? Eigen::Isometry3d::Identity() : centres.front();
     int iterations = 0;
     bool any = false;
-    for (std::size_t k = 0; k < best; ++k) {
+    for (std::size_t k = static_cast<std::size_t>(first_rank); k < best; ++k) {
         const Attempt attempt = recover(points, track_points, candidates[order[k]], nullptr);
         iterations += attempt.iterations;
         // A localised attempt beats one that is not; among equals, more points on the surface.
@@ -540,11 +542,11 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     const bool first = records_.empty();
     // The global search (only when it runs): around the map's places; without them around the
     // prediction and the last localised pose, farther (lost_search_radius_m).
-    const auto global_search = [&]() {
+    const auto global_search = [&](int first_rank, int end_rank) {
         const Clock::time_point search_start = Clock::now();
         Attempt found;
         if (!places_.empty()) {
-            found = search(wide, points, places_, config_.search_radius_m);
+            found = search(wide, points, places_, config_.search_radius_m, first_rank, end_rank);
             stage_seconds_.search += seconds_since(search_start);
             return found;
         }
@@ -558,8 +560,20 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
             break;
         }
         found = search(wide, points, centres,
-                       std::max(config_.search_radius_m, config_.lost_search_radius_m));
+                       std::max(config_.search_radius_m, config_.lost_search_radius_m), first_rank,
+                       end_rank);
         stage_seconds_.search += seconds_since(search_start);
+        return found;
+    };
+    // The search's best candidates; when they fail on the first scan of a run of failures, the
+    // ones ranked after them (deep_search_registrations).
+    const auto search_deeper_once = [&](int& iterations) {
+        Attempt found = global_search(0, config_.search_registrations);
+        if (!found.localized && failures_in_a_row_ == 0 &&
+            config_.deep_search_registrations > config_.search_registrations) {
+            iterations += found.iterations;
+            found = global_search(config_.search_registrations, config_.deep_search_registrations);
+        }
         return found;
     };
 
@@ -567,7 +581,7 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     LocalizeSource source = LocalizeSource::kTracked;
     int iterations = 0;
     if (first && !has_initial_pose_) {
-        attempt = global_search();
+        attempt = search_deeper_once(iterations);
         source = LocalizeSource::kGlobalSearch;
         record.points = wide.size();
     } else {
@@ -649,7 +663,7 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
         }
         if (!attempt.localized && failures_in_a_row_ + 1 >= config_.global_search_after_failures) {
             iterations += attempt.iterations;
-            attempt = global_search();
+            attempt = search_deeper_once(iterations);
             source = LocalizeSource::kGlobalSearch;
         }
     }
