@@ -30,8 +30,7 @@ void apply_batch_defaults(MapperConfig& config) {
     if (!config.is_set("preprocess.voxel_points")) {
         config.preprocess.voxel_points = VoxelPoints::kAll;
     }
-    const bool automatic_schedule = config.iterations < 0 && config.trainer.batch_size == 0;
-    if (automatic_schedule &&
+    if (config.automatic_batch_schedule() &&
         config.holds_default("training.eikonal_weight", config.trainer.eikonal_weight,
                              TrainerConfig{}.eikonal_weight)) {
         config.trainer.eikonal_weight = 0.0f;

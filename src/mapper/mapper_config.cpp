@@ -495,7 +495,7 @@ BatchSchedule MapperConfig::batch_schedule(std::size_t num_corners) const {
     constexpr int kAutoBatchSize = 32768;
     constexpr float kAutoLearningRate = 0.03f;
     const TrainerConfig paper;
-    const bool automatic = iterations < 0 && trainer.batch_size == 0;
+    const bool automatic = automatic_batch_schedule();
     const double leaf_m = octree.leaf_size_m;
     BatchSchedule schedule;
     schedule.batch_size = trainer.batch_size > 0 ? trainer.batch_size

@@ -133,6 +133,10 @@ struct MapperConfig {
     /// user set it (refine.in_consolidation's comment).
     bool refines_in_consolidation(bool estimated_poses) const;
 
+    /// Whether batch mode trains on the automatic schedule: `iterations` and trainer.batch_size
+    /// both automatic (batch_schedule()).
+    bool automatic_batch_schedule() const { return iterations < 0 && trainer.batch_size == 0; }
+
     /// Batch mode's samples per step, learning rate and steps. With `iterations` and
     /// trainer.batch_size both automatic (the defaults), the automatic schedule: 32768 samples
     /// per step at learning rate 0.03 (unless set), 250 steps at 0.2 m leaves, 250 *
