@@ -46,6 +46,7 @@ PoseRefinementConfig PoseRefinementConfig::at_leaf(double leaf_size_m, double mi
     scaled.coarse_kernel_scale_m *= scale;
     scaled.max_correction_m *= scale;
     scaled.warm_start_max_relative_m *= scale;
+    scaled.gauge_lever_m *= scale;
     scaled.min_range_m = min_range;
     scaled.max_range_m = max_range;
     return scaled;
@@ -83,6 +84,32 @@ RelativePoseChange relative_pose_change(const std::vector<Eigen::Isometry3d>& gi
 bool PoseRefinementConfig::warm_start_fits(const RelativePoseChange& change) const {
     return warm_start && change.median_translation_m <= warm_start_max_relative_m &&
            change.median_rotation_deg <= warm_start_max_relative_deg;
+}
+
+Eigen::Isometry3d gauge_alignment(const std::vector<Eigen::Isometry3d>& poses,
+                                  const std::vector<Eigen::Isometry3d>& reference, double lever_m) {
+    if (poses.size() != reference.size()) {
+        throw DataError("gauge alignment: " + std::to_string(poses.size()) + " poses against " +
+                        std::to_string(reference.size()) + " reference poses");
+    }
+    Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
+    if (poses.size() < 3) return G;
+    std::vector<Eigen::Vector3d> from, to;
+    from.reserve(4 * poses.size());
+    to.reserve(4 * poses.size());
+    for (std::size_t s = 0; s < poses.size(); ++s) {
+        for (int axis = -1; axis < 3; ++axis) {
+            const Eigen::Vector3d offset =
+                axis < 0 ? Eigen::Vector3d(Eigen::Vector3d::Zero())
+                         : Eigen::Vector3d(lever_m * Eigen::Vector3d::Unit(axis));
+            from.push_back(poses[s] * offset);
+            to.push_back(reference[s] * offset);
+        }
+    }
+    const SimilarityTransform fit = umeyama_alignment(from, to, /*with_scale=*/false);
+    G.linear() = fit.R;
+    G.translation() = fit.t;
+    return G;
 }
 
 std::vector<Eigen::Isometry3d> refine_scan_poses(const NeuralSdf& sdf, const RaySet& rays,
@@ -144,23 +171,10 @@ std::vector<Eigen::Isometry3d> refine_scan_poses(const NeuralSdf& sdf, const Ray
         rotations_deg.push_back(r_deg);
         ++figures.accepted;
     }
-    // Gauge: the refined poses aligned to the ones the round started from (positions and a point
-    // one metre along each axis), so that the corrections do not move the map as a whole.
+    // Gauge: the refined poses aligned to the ones the round started from, so that the
+    // corrections do not move the map as a whole.
     if (refined.size() >= 3) {
-        std::vector<Eigen::Vector3d> from, to;
-        for (std::size_t s = 0; s < refined.size(); ++s) {
-            for (int axis = -1; axis < 3; ++axis) {
-                const Eigen::Vector3d offset = axis < 0
-                                                   ? Eigen::Vector3d(Eigen::Vector3d::Zero())
-                                                   : Eigen::Vector3d(Eigen::Vector3d::Unit(axis));
-                from.push_back(refined[s] * offset);
-                to.push_back(T_map_sensor[s] * offset);
-            }
-        }
-        const SimilarityTransform gauge = umeyama_alignment(from, to, /*with_scale=*/false);
-        Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
-        G.linear() = gauge.R;
-        G.translation() = gauge.t;
+        const Eigen::Isometry3d G = gauge_alignment(refined, T_map_sensor, config.gauge_lever_m);
         Eigen::Vector3d mean_before = Eigen::Vector3d::Zero(), mean_after = Eigen::Vector3d::Zero();
         for (Eigen::Isometry3d& T : refined) {
             mean_before += T.translation();
