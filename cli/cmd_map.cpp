@@ -662,7 +662,7 @@ int run_map(const MapOptions& given_options) {
     // deskewed scans; at given poses, fitted to the skewed scans, deskewing lost points on the
     // real drive, and with estimated poses it lost 0.3-0.9 points: docs/field.md).
     const bool refining_given_poses =
-        opt.mode == "batch" ? config.refine.rounds > 0 : config.refines_in_consolidation(false);
+        opt.mode == "batch" ? config.refine.rounds > 0 : config.refines_in_consolidation();
     if (config.deskew.azimuth_times != DeskewMode::kAuto ||
         (refining_given_poses && !estimate_option && selected.has_poses())) {
         selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);

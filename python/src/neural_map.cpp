@@ -202,7 +202,7 @@ class NeuralMap {
             // The kept scans' poses refined as `shine map --mode incremental` refines them at
             // given poses (refine.in_consolidation).
             const PoseRefinementConfig refine = incremental_->config().scaled_refinement();
-            const bool refining = incremental_->config().refines_in_consolidation(false);
+            const bool refining = incremental_->config().refines_in_consolidation();
             incremental_->consolidate(
                 n, [&](int done, int) { line.update(static_cast<std::size_t>(done)); },
                 refining ? &refine : nullptr);

@@ -641,7 +641,7 @@ IncrementalSequenceMap map_sequence_incremental(
         Progress progress(progress_tag.empty() ? "consolidate" : "consolidate " + progress_tag,
                           static_cast<std::size_t>(consolidation_steps));
         const PoseRefinementConfig refine = mapper.config().scaled_refinement();
-        const bool refining = mapper.config().refines_in_consolidation(result.odometry != nullptr);
+        const bool refining = mapper.config().refines_in_consolidation();
         const ConsolidationStats& done = mapper.consolidate(
             consolidation_steps,
             [&](int step, int) { progress.update(static_cast<std::size_t>(step)); },

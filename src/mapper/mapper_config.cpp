@@ -383,9 +383,8 @@ PoseRefinementConfig MapperConfig::scaled_refinement() const {
     return refine.at_leaf(octree.leaf_size_m, preprocess.min_range_m, preprocess.max_range_m);
 }
 
-bool MapperConfig::refines_in_consolidation(bool estimated_poses) const {
-    return refine.rounds > 0 && refine.in_consolidation &&
-           (!estimated_poses || is_set("refine.in_consolidation"));
+bool MapperConfig::refines_in_consolidation() const {
+    return refine.rounds > 0 && refine.in_consolidation;
 }
 
 ScenePreset MapperConfig::resolved_scene() const {

@@ -129,9 +129,8 @@ struct MapperConfig {
     /// what both mappers register with.
     PoseRefinementConfig scaled_refinement() const;
     /// Whether incremental mode's consolidation refines the kept scans' poses: refine.rounds > 0
-    /// and refine.in_consolidation, which with `estimated_poses` (odometry) counts only when the
-    /// user set it (refine.in_consolidation's comment).
-    bool refines_in_consolidation(bool estimated_poses) const;
+    /// and refine.in_consolidation (given and estimated poses alike).
+    bool refines_in_consolidation() const;
 
     /// Whether batch mode trains on the automatic schedule: `iterations` and trainer.batch_size
     /// both automatic (batch_schedule()).

@@ -100,7 +100,10 @@ struct PoseRefinementConfig {
     /// Measured at given poses (docs/field.md): held-out rays within 10 cm 70.93 -> 74.50 % on
     /// the real drive, 88.50 -> 90.26 % on the real walk, the street at true poses level (F
     /// 96.42 %), the street with 5 cm / 0.3 deg pose noise 58.9 -> 81.9 %. With estimated poses
-    /// (odometry) it is off unless set: there it scored 0.4-0.7 points lower at the data's poses.
+    /// (odometry), since the gauge's 10 m lever: drive / walk 58.45 -> 58.40 % / 73.29 -> 73.57 %
+    /// at the data's poses, 74.49 -> 74.93 % / 90.60 -> 90.70 % next to the estimate, the street
+    /// level (F 96.33 -> 96.29 %); with the 1 m lever it had lost 0.4-0.7 points at the data's
+    /// poses, and was off unless set.
     bool in_consolidation = true;
 
     /// These settings for a map of `leaf_size_m` leaves whose scans keep ranges in [min_range_m,
