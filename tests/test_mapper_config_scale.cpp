@@ -195,15 +195,18 @@ TEST(MapperConfigScale, AutomaticScheduleFollowsTheScenesCorners) {
     // Twice the street's corners: 500 steps; far more than the leaf formula's cap: 6250.
     EXPECT_EQ(object.batch_schedule(2 * 438267).iterations, 500);
     EXPECT_EQ(object.batch_schedule(100000000).iterations, 6250);
-    // Outdoors at 0.2 m the leaf formula is the smaller for a street-sized map: unchanged.
+    // Outdoors at 0.2 m: a street's corners, 250 steps; larger scenes in proportion (a 0.4 km
+    // route's 1.72 M corners, 980), smaller ones never below 250.
     const MapperConfig street = finalized("");
     EXPECT_EQ(street.batch_schedule(438267).iterations, 250);
-    EXPECT_EQ(street.batch_schedule(10 * 438267).iterations, 250);
-    // At 0.1 m the street's 1.66 M corners cap the leaf formula's 1000 steps at 947; the real
-    // walk's 1.79 M corners (cap 1022) leave 1000.
+    EXPECT_EQ(street.batch_schedule(1717560).iterations, 980);
+    EXPECT_EQ(street.batch_schedule(10 * 438267).iterations, 2500);
+    EXPECT_EQ(street.batch_schedule(100000).iterations, 250);
+    // At 0.1 m the same rule: the street's 1.66 M corners 947 steps, the real walk's 1.79 M
+    // 1022.
     const MapperConfig fine = finalized("map:\n  leaf_size_m: 0.1\n");
     EXPECT_EQ(fine.batch_schedule(1660000).iterations, 947);
-    EXPECT_EQ(fine.batch_schedule(1791171).iterations, 1000);
+    EXPECT_EQ(fine.batch_schedule(1791171).iterations, 1022);
     // Set steps are never moved.
     EXPECT_EQ(finalized("training:\n  iterations: 1000\n").batch_schedule(1000).iterations, 1000);
 }

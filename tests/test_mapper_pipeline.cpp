@@ -253,3 +253,22 @@ TEST(MapperConfig, SettingStepsOrBatchSizeKeepsThePapersSteps) {
     EXPECT_EQ(read_back.trainer.batch_size, 0);
     EXPECT_EQ(read_back.batch_schedule().batch_size, 32768);
 }
+
+// The automatic schedule is sized by the map's corners, or by a count the caller sets: batch
+// mode's map at the refined poses takes the first phase's, so both phases train as many steps.
+TEST(BatchMapperSchedule, SetCornersSizeTheAutomaticSchedule) {
+    MapperConfig config = small_config();
+    config.iterations = -1;
+    config.trainer.batch_size = 0;  // the automatic schedule
+    BatchMapper mapper(config);
+    mapper.add_scan(make_scan({0, 0, 1.7}, 8, 90, 12.0));
+    mapper.finish_scans();
+    ASSERT_GT(mapper.sdf().octree.num_corners(), 0u);
+    EXPECT_EQ(mapper.schedule_corners(), mapper.sdf().octree.num_corners());
+    EXPECT_EQ(mapper.planned_iterations(), 250);  // a small map: the floor
+    mapper.set_schedule_corners(3 *
+                                static_cast<std::size_t>(MapperConfig::kScheduleCornersPerUnit));
+    EXPECT_EQ(mapper.planned_iterations(), 750);
+    mapper.set_schedule_corners(0);  // back to the map's own count
+    EXPECT_EQ(mapper.planned_iterations(), 250);
+}

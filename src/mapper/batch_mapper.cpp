@@ -247,7 +247,7 @@ bool BatchMapper::run_steps(int until, bool refining,
         trainer_ = std::make_unique<Trainer>(*sdf_, config_.batch_trainer(), config_.sampling);
     Trainer& trainer = *trainer_;
     trainer.reset_seconds();
-    const BatchSchedule schedule = config_.batch_schedule(sdf_->octree.num_corners());
+    const BatchSchedule schedule = config_.batch_schedule(schedule_corners());
     const float lr0 = schedule.learning_rate;
     const float dlr0 = config_.trainer.decoder_adam.learning_rate;
     const int iterations = schedule.iterations;
@@ -383,8 +383,10 @@ RelativePoseChange BatchMapper::refinement_relative_change() const {
     return largest;
 }
 
-int BatchMapper::planned_iterations() const {
-    return config_.batch_iterations(sdf_->octree.num_corners());
+int BatchMapper::planned_iterations() const { return config_.batch_iterations(schedule_corners()); }
+
+std::size_t BatchMapper::schedule_corners() const {
+    return schedule_corners_ > 0 ? schedule_corners_ : sdf_->octree.num_corners();
 }
 
 }  // namespace shine

@@ -126,10 +126,12 @@ void add_scans_loading_ahead(std::size_t count, const Load& load, const Add& add
 /// is off here: at poses off by centimetres other scans see through true surfaces, and points
 /// it drops are lost to the map made at the refined poses.
 /// A stop request (control) ends it with a loading-phase checkpoint: a resumed run refines again.
+/// `schedule_corners` gets the corner count its schedule was sized by.
 std::vector<Eigen::Isometry3d> refine_sequence_poses(
     const MapperConfig& config, const ScanSequence& sequence, const std::string& progress_tag,
     const RunControl* control, std::vector<PoseRefinementRound>& rounds,
-    std::unique_ptr<NeuralSdf>* first_map, RelativePoseChange& relative_change) {
+    std::unique_ptr<NeuralSdf>* first_map, RelativePoseChange& relative_change,
+    std::size_t& schedule_corners) {
     MapperConfig first = config;
     first.dynamic.enabled = false;
     BatchMapper mapper(first);
@@ -195,6 +197,7 @@ std::vector<Eigen::Isometry3d> refine_sequence_poses(
     }
     rounds = mapper.refinement_rounds();
     relative_change = mapper.refinement_relative_change();
+    schedule_corners = mapper.schedule_corners();
     if (first_map) *first_map = std::make_unique<NeuralSdf>(mapper.sdf().clone());
     return poses_world;
 }
@@ -212,11 +215,15 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
     ScanSequence sequence = given_sequence;
     const PoseRefinementConfig refine = config.refine;
     std::unique_ptr<NeuralSdf> first_map;  // with refine.warm_start: where the map starts from
+    // The first phase's corner count sizes both phases' schedule (BatchMapper::
+    // set_schedule_corners): the map at the refined poses trains as many steps.
+    std::size_t schedule_corners = 0;
     if (refine.rounds > 0 && sequence.size() >= 3) {
         const auto t0 = std::chrono::steady_clock::now();
-        result.refined_poses_world = refine_sequence_poses(
-            config, sequence, progress_tag, control, result.refinement,
-            refine.warm_start ? &first_map : nullptr, result.relative_pose_change);
+        result.refined_poses_world =
+            refine_sequence_poses(config, sequence, progress_tag, control, result.refinement,
+                                  refine.warm_start ? &first_map : nullptr,
+                                  result.relative_pose_change, schedule_corners);
         result.refine_seconds = seconds_since(t0);
         // The first map is reused only where its surfaces were sharp: where the poses it was
         // trained at differ little from the refined ones between consecutive scans.
@@ -228,6 +235,7 @@ SequenceMap map_sequence(const MapperConfig& config_in, const ScanSequence& give
     config.refine.rounds = 0;
     result.mapper = std::make_unique<BatchMapper>(config);
     BatchMapper& mapper = *result.mapper;
+    mapper.set_schedule_corners(schedule_corners);
     const bool checkpoints = control && !control->checkpoint_path.empty();
     const auto stop = [&] {
         return control && control->stop_requested && control->stop_requested();

@@ -119,8 +119,15 @@ class BatchMapper {
     /// Steps done so far.
     int iterations_done() const { return iterations_done_; }
     /// The steps this run trains: config.batch_schedule() for this map's corner count (known once
-    /// the scans are added and finish_scans() ran; the automatic schedule follows it).
+    /// the scans are added and finish_scans() ran; the automatic schedule follows it), or for
+    /// the count set with set_schedule_corners().
     int planned_iterations() const;
+    /// Sizes the automatic schedule by `corners` instead of this map's count (0: this map's).
+    /// Batch mode's map at the refined poses takes the first phase's, so that both phases run
+    /// the same schedule and a warm start resumes at the step the first phase stopped.
+    void set_schedule_corners(std::size_t corners) { schedule_corners_ = corners; }
+    /// The corner count the schedule is sized by.
+    std::size_t schedule_corners() const;
 
     /// The training state (parameters, optimiser, step count, stats) for a checkpoint.
     /// load_state() expects the same scans to have been added again first (it checks the counts)
@@ -211,6 +218,7 @@ class BatchMapper {
     /// Corners when finish_scans() last put the rows in tree order (0: never).
     std::size_t renumbered_corners_ = 0;
     bool normals_done_ = false;
+    std::size_t schedule_corners_ = 0;  ///< set_schedule_corners()
     int iterations_done_ = 0;
     double bce_average_ = 0.0;
 };

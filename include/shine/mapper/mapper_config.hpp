@@ -151,12 +151,16 @@ struct MapperConfig {
     /// iterations, 2400 steps at 0.2 m and coarser, 2400 * (0.2 m / leaf)^1.5 for finer leaves, at
     /// most 50,000.
     ///
-    /// With the map's corner count (`num_corners`, all levels; 0 = unknown) the automatic schedule
-    /// also follows the scene: it takes at most 250 steps per kScheduleCornersPerUnit corners (the
-    /// bundled street's at 0.2 m), never fewer than 250. A fine leaf on a small scene (an object
-    /// at 3 mm: 186,624 corners) then trains 250 steps instead of the leaf formula's 6250, as long
-    /// as a street of its size; at 0.2 m the leaf formula is the smaller, and at 0.1 m the two
-    /// are close (streets 1.59-1.66 M corners: 907-947 steps; the real walk's 1.79 M: 1000).
+    /// With the map's corner count (`num_corners`, all levels; 0 = unknown; batch mode always
+    /// knows it) the automatic schedule follows the scene instead of the leaf: 250 steps per
+    /// kScheduleCornersPerUnit corners (the bundled street's at 0.2 m), never fewer than 250, at
+    /// most 6250: each corner gets as many samples whatever the scene's size. An object at 3 mm
+    /// (186,624 corners) trains 250 steps; streets at 0.1 m (1.59-1.66 M corners) 907-947; at 0.2 m
+    /// the bundled street 251, the real drive 263 and the real walk 271 (the count of batch
+    /// mode's first phase, BatchMapper::set_schedule_corners). Before, at 0.2 m every scene trained
+    /// 250 steps and larger ones were under-trained (docs/field.md, Log): a 100-scan street (1.5
+    /// streets of corners) F 93.77 % against 95.24 % at 381 steps, a 0.4 km route (3.9
+    /// streets) 91.58 % against 96.50 % at 975.
     BatchSchedule batch_schedule(std::size_t num_corners = 0) const;
     /// Corners of the bundled street's 0.2 m map: one unit of the scene-following cap.
     static constexpr double kScheduleCornersPerUnit = 438267.0;
