@@ -467,7 +467,7 @@ std::vector<double> MapLocalizer::surface_scores(
 MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& points,
                                            const std::vector<Eigen::Vector3f>& track_points,
                                            const std::vector<Eigen::Isometry3d>& centres,
-                                           double radius_m, int first_rank, int end_rank) const {
+                                           double radius_m, int deep_registrations) const {
     // The candidates: each centre moved on a horizontal grid within search_radius_m, turned to
     // each heading.
     std::vector<Eigen::Vector3d> offsets;
@@ -494,28 +494,40 @@ MapLocalizer::Attempt MapLocalizer::search(const std::vector<Eigen::Vector3f>& p
         surface_scores(thinned(points, config_.search_points), candidates);
     std::vector<std::size_t> order(candidates.size());
     std::iota(order.begin(), order.end(), std::size_t{0});
-    // The candidates ranked [first_rank, end_rank) by score are registered.
-    const std::size_t best =
-        std::min<std::size_t>(order.size(), static_cast<std::size_t>(end_rank));
-    std::partial_sort(order.begin(), order.begin() + best, order.end(),
-                      [&](std::size_t a, std::size_t b) {
-                          return scores[a] != scores[b] ? scores[a] > scores[b] : a < b;
-                      });
-    Attempt chosen;
-    chosen.pose = centres.empty() ? Eigen::Isometry3d::Identity() : centres.front();
-    int iterations = 0;
-    bool any = false;
-    for (std::size_t k = static_cast<std::size_t>(first_rank); k < best; ++k) {
-        const Attempt attempt = recover(points, track_points, candidates[order[k]], nullptr);
-        iterations += attempt.iterations;
-        // A localised attempt beats one that is not; among equals, more points on the surface.
-        if (!any || (attempt.localized && !chosen.localized) ||
-            (attempt.localized == chosen.localized && attempt.inlier_ratio > chosen.inlier_ratio)) {
-            chosen = attempt;
-            any = true;
+    // The candidates ranked [first, end) by score registered (ranks before `first` are in place
+    // already: the comparison's ties go by index, so the ranks are the same either way).
+    const auto register_ranks = [&](int first_rank, int end_rank) {
+        const std::size_t first = std::min<std::size_t>(order.size(), first_rank);
+        const std::size_t end = std::min<std::size_t>(order.size(), end_rank);
+        std::partial_sort(order.begin() + first, order.begin() + end, order.end(),
+                          [&](std::size_t a, std::size_t b) {
+                              return scores[a] != scores[b] ? scores[a] > scores[b] : a < b;
+                          });
+        Attempt chosen;
+        chosen.pose = centres.empty() ? Eigen::Isometry3d::Identity() : centres.front();
+        int iterations = 0;
+        bool any = false;
+        for (std::size_t k = first; k < end; ++k) {
+            const Attempt attempt = recover(points, track_points, candidates[order[k]], nullptr);
+            iterations += attempt.iterations;
+            // A localised attempt beats one that is not; among equals, more points on the
+            // surface.
+            if (!any || (attempt.localized && !chosen.localized) ||
+                (attempt.localized == chosen.localized &&
+                 attempt.inlier_ratio > chosen.inlier_ratio)) {
+                chosen = attempt;
+                any = true;
+            }
         }
+        chosen.iterations = iterations;
+        return chosen;
+    };
+    Attempt chosen = register_ranks(0, config_.search_registrations);
+    if (!chosen.localized && deep_registrations > config_.search_registrations) {
+        const int shallow_iterations = chosen.iterations;
+        chosen = register_ranks(config_.search_registrations, deep_registrations);
+        chosen.iterations += shallow_iterations;
     }
-    chosen.iterations = iterations;
     chosen.candidates = static_cast<int>(candidates.size());
     return chosen;
 }
@@ -542,11 +554,14 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     const bool first = records_.empty();
     // The global search (only when it runs): around the map's places; without them around the
     // prediction and the last localised pose, farther (lost_search_radius_m).
-    const auto global_search = [&](int first_rank, int end_rank) {
+    // On the first scan of a run of failures, the search goes deeper when its best candidates
+    // fail (deep_search_registrations).
+    const auto global_search = [&]() {
+        const int deep = failures_in_a_row_ == 0 ? config_.deep_search_registrations : 0;
         const Clock::time_point search_start = Clock::now();
         Attempt found;
         if (!places_.empty()) {
-            found = search(wide, points, places_, config_.search_radius_m, first_rank, end_rank);
+            found = search(wide, points, places_, config_.search_radius_m, deep);
             stage_seconds_.search += seconds_since(search_start);
             return found;
         }
@@ -560,20 +575,8 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
             break;
         }
         found = search(wide, points, centres,
-                       std::max(config_.search_radius_m, config_.lost_search_radius_m), first_rank,
-                       end_rank);
+                       std::max(config_.search_radius_m, config_.lost_search_radius_m), deep);
         stage_seconds_.search += seconds_since(search_start);
-        return found;
-    };
-    // The search's best candidates; when they fail on the first scan of a run of failures, the
-    // ones ranked after them (deep_search_registrations).
-    const auto search_deeper_once = [&](int& iterations) {
-        Attempt found = global_search(0, config_.search_registrations);
-        if (!found.localized && failures_in_a_row_ == 0 &&
-            config_.deep_search_registrations > config_.search_registrations) {
-            iterations += found.iterations;
-            found = global_search(config_.search_registrations, config_.deep_search_registrations);
-        }
         return found;
     };
 
@@ -581,7 +584,7 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
     LocalizeSource source = LocalizeSource::kTracked;
     int iterations = 0;
     if (first && !has_initial_pose_) {
-        attempt = search_deeper_once(iterations);
+        attempt = global_search();
         source = LocalizeSource::kGlobalSearch;
         record.points = wide.size();
     } else {
@@ -663,7 +666,7 @@ const LocalizeRecord& MapLocalizer::localize(const std::vector<Eigen::Vector3f>&
         }
         if (!attempt.localized && failures_in_a_row_ + 1 >= config_.global_search_after_failures) {
             iterations += attempt.iterations;
-            attempt = search_deeper_once(iterations);
+            attempt = global_search();
             source = LocalizeSource::kGlobalSearch;
         }
     }

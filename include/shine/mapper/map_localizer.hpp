@@ -209,10 +209,13 @@ class MapLocalizer {
     /// candidate pose (the global search's and the starts' score).
     std::vector<double> surface_scores(const std::vector<Eigen::Vector3f>& sample,
                                        const std::vector<Eigen::Isometry3d>& candidates) const;
+    /// The global search around `centres`: the best search_registrations candidates registered;
+    /// when none localises and `deep_registrations` is larger, the ones ranked after them up to
+    /// it (the same candidates and scores), whose best is then returned.
     Attempt search(const std::vector<Eigen::Vector3f>& points,
                    const std::vector<Eigen::Vector3f>& track_points,
-                   const std::vector<Eigen::Isometry3d>& centres, double radius_m, int first_rank,
-                   int end_rank) const;
+                   const std::vector<Eigen::Isometry3d>& centres, double radius_m,
+                   int deep_registrations) const;
     /// Share of points within inlier_distance_m of the surface at `pose`, valid count and the
     /// median |SDF| of the valid ones.
     void score(const std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& pose,
