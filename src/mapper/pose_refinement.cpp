@@ -11,7 +11,6 @@
 #include "shine/mapper/neural_sdf_field.hpp"
 #include "shine/odometry/registration_points.hpp"
 #include "shine/odometry/sdf_registration.hpp"
-#include "shine/odometry/se3.hpp"
 #include "shine/odometry/trajectory_error.hpp"
 
 namespace shine {
@@ -74,7 +73,7 @@ RelativePoseChange relative_pose_change(const std::vector<Eigen::Isometry3d>& gi
         const Eigen::Isometry3d refined_motion = refined[k].inverse() * refined[k + 1];
         const Eigen::Isometry3d difference = given_motion.inverse() * refined_motion;
         translations_m.push_back(difference.translation().norm());
-        rotations_deg.push_back(rotation_angle_rad(difference) * 180.0 / M_PI);
+        rotations_deg.push_back(rotation_deg(difference.linear()));
     }
     change.median_translation_m = median(std::move(translations_m));
     change.median_rotation_deg = median(std::move(rotations_deg));
