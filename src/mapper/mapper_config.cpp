@@ -508,13 +508,16 @@ BatchSchedule MapperConfig::batch_schedule(std::size_t num_corners) const {
     if (iterations >= 0) {
         schedule.iterations = iterations;
     } else if (automatic) {
-        // Without the map's corners: the steps a street-sized scene takes at this leaf.
-        const double finer = std::pow(0.2 / leaf_m, 2.0), coarser = std::min(leaf_m / 0.2, 2.0);
-        double steps = 250.0 * std::max(finer, coarser);
+        double steps = 0.0;
         if (num_corners > 0) {
-            // With them: 250 steps per street of corners, at every leaf and scene size.
+            // 250 steps per street of corners, at every leaf and scene size.
             const double units = static_cast<double>(num_corners) / kScheduleCornersPerUnit;
             steps = 250.0 * std::max(units, 1.0);
+        } else {
+            // Without the map's corners: the steps a street-sized scene takes at this leaf.
+            const double finer = std::pow(0.2 / leaf_m, 2.0);
+            const double coarser = std::min(leaf_m / 0.2, 2.0);
+            steps = 250.0 * std::max(finer, coarser);
         }
         schedule.iterations = static_cast<int>(std::lround(std::min(steps, 6250.0)));
     } else {
