@@ -360,6 +360,7 @@ std::vector<Eigen::Isometry3d> write_refined_poses(
     for (const PoseRefinementRound& r : rounds) {
         json["rounds"].push_back({{"step", r.step},
                                   {"accepted", r.accepted},
+                                  {"unfinished", r.unfinished},
                                   {"rejected", r.rejected},
                                   {"median_translation_m", r.median_translation_m},
                                   {"median_rotation_deg", r.median_rotation_deg},

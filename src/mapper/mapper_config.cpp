@@ -292,6 +292,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"max_iterations", number(c.refine.max_iterations, 1, 1000)},
           {"max_points", number(c.refine.max_points, 0, 100000000)},
           {"gauge_lever_m", number(c.refine.gauge_lever_m, 1e-3, 1e4)},
+          {"min_unfinished_cost_cut", number(c.refine.min_unfinished_cost_cut, 0.0, 1.0)},
           {"max_correction_m", number(c.refine.max_correction_m, 0.0, 1e4)},
           {"max_correction_deg", number(c.refine.max_correction_deg, 0.0, 180.0)},
           {"warm_start", boolean(c.refine.warm_start)},

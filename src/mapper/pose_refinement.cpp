@@ -11,7 +11,7 @@
 #include "shine/mapper/neural_sdf_field.hpp"
 #include "shine/odometry/registration_points.hpp"
 #include "shine/odometry/sdf_registration.hpp"
-#include "shine/odometry/trajectory_error.hpp"
+#include "shine/odometry/se3.hpp"
 
 namespace shine {
 
@@ -93,21 +93,41 @@ Eigen::Isometry3d gauge_alignment(const std::vector<Eigen::Isometry3d>& poses,
     }
     Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
     if (poses.size() < 3) return G;
-    std::vector<Eigen::Vector3d> from, to;
-    from.reserve(4 * poses.size());
-    to.reserve(4 * poses.size());
-    for (std::size_t s = 0; s < poses.size(); ++s) {
-        for (int axis = -1; axis < 3; ++axis) {
-            const Eigen::Vector3d offset =
-                axis < 0 ? Eigen::Vector3d(Eigen::Vector3d::Zero())
-                         : Eigen::Vector3d(lever_m * Eigen::Vector3d::Unit(axis));
-            from.push_back(poses[s] * offset);
-            to.push_back(reference[s] * offset);
+    // Weighted least squares over the positions (residuals in metres) and the orientations
+    // (rotation-vector residuals times lever_m, so a rotation weighs as lever_m per radian), each
+    // on its own: a position's noise does not enter the rotation through lever points, nor a
+    // rotation's noise the translation. Solved by Gauss-Newton on G' = G about the positions'
+    // centroid c (well conditioned however far the data lies from the origin), with left
+    // increments (dphi, dt): G' <- (exp(dphi), dt) G'.
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const Eigen::Isometry3d& T : poses) c += T.translation();
+    c /= static_cast<double>(poses.size());
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d t = Eigen::Vector3d::Zero();
+    const double w2 = lever_m * lever_m;
+    for (int iteration = 0; iteration < 20; ++iteration) {
+        Matrix6d H = Matrix6d::Zero();
+        Vector6d g = Vector6d::Zero();
+        for (std::size_t s = 0; s < poses.size(); ++s) {
+            const Eigen::Vector3d p = R * (poses[s].translation() - c) + t;
+            const Eigen::Vector3d r = (reference[s].translation() - c) - p;
+            Eigen::Matrix<double, 3, 6> J;
+            J << -skew(p), Eigen::Matrix3d::Identity();  // d(p) / d(dphi, dt)
+            H += J.transpose() * J;
+            g += J.transpose() * r;
+            const Eigen::Vector3d r_rot =
+                so3_log(reference[s].linear() * (R * poses[s].linear()).transpose());
+            H.topLeftCorner<3, 3>() += w2 * Eigen::Matrix3d::Identity();
+            g.head<3>() += w2 * r_rot;
         }
+        const Vector6d step = H.ldlt().solve(g);
+        const Eigen::Matrix3d dR = so3_exp(step.head<3>());
+        R = dR * R;
+        t = dR * t + step.tail<3>();
+        if (step.norm() < 1e-13) break;
     }
-    const SimilarityTransform fit = umeyama_alignment(from, to, /*with_scale=*/false);
-    G.linear() = fit.R;
-    G.translation() = fit.t;
+    G.linear() = R;
+    G.translation() = t + c - R * c;
     return G;
 }
 
@@ -154,21 +174,36 @@ std::vector<Eigen::Isometry3d> refine_scan_poses(const NeuralSdf& sdf, const Ray
         const Eigen::Isometry3d initial_world = translated(origin, T_map_sensor[s]);
         const RegistrationResult result =
             register_to_sdf(points, initial_world, field, registration);
-        if (!result.accepted()) {
+        // A solve that ran out of iterations having cut the cost by a good share started far
+        // from the pose and went most of the way: a step towards it, and the next round goes on
+        // from there. Kept where it was instead, a scan far off in the first round stays in the
+        // map at its given pose while the map sharpens around it, and later rounds, at finer
+        // kernels, no longer pull it all the way (a simulated street with 5 cm / 0.3 deg of
+        // noise per scan: one scan given 1.23 deg off stayed 0.96 deg off, and the F-score 2.0
+        // points below the true poses'; 0.6 since). A solve that crept by a few per cent only
+        // wanders where the cost is flat (scans at true poses among moving cars on a coarse
+        // map: 4-7 %) and keeps its scan. Measured on noisy streets: 42-95 %.
+        const bool unfinished =
+            result.status == RegistrationStatus::kMaxIterations && !result.degenerate &&
+            result.final_cost < (1.0 - config.min_unfinished_cost_cut) * result.initial_cost;
+        if (!result.accepted() && !unfinished) {
             ++figures.rejected;
             continue;
         }
-        const Eigen::Isometry3d correction = initial_world.inverse() * result.T_world_sensor;
+        const Eigen::Isometry3d solved =
+            result.accepted() ? result.T_world_sensor : result.T_world_sensor_solved;
+        const Eigen::Isometry3d correction = initial_world.inverse() * solved;
         const double t_m = correction.translation().norm();
         const double r_deg = rotation_deg(correction.linear());
         if (t_m > config.max_correction_m || r_deg > config.max_correction_deg) {
             ++figures.rejected;
             continue;
         }
-        refined[s] = translated(-origin, result.T_world_sensor);
+        refined[s] = translated(-origin, solved);
         translations_m.push_back(t_m);
         rotations_deg.push_back(r_deg);
         ++figures.accepted;
+        if (!result.accepted()) ++figures.unfinished;
     }
     // Gauge: the refined poses aligned to the ones the round started from, so that the
     // corrections do not move the map as a whole.

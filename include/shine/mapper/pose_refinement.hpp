@@ -11,13 +11,15 @@
 // about as much as a few training steps (docs/field.md has the measurements).
 //
 // Gauge: registering every scan to a map made from all of them leaves the frame free to creep.
-// After each round the new poses are aligned (SE(3), gauge_alignment(): Umeyama over each scan's
-// position and three points gauge_lever_m along its axes) to the poses the round started from:
-// the corrections do not move the map as a whole, which is the weighted prior towards the given
-// poses that keeps the map in the data's frame (every scan weighted equally).
+// After each round the new poses are aligned (SE(3), gauge_alignment(): least squares over each
+// scan's position and, apart, its orientation, a radian weighing as gauge_lever_m metres) to the
+// poses the round started from: the corrections do not move the map as a whole, which is the
+// weighted prior towards the given poses that keeps the map in the data's frame (every scan
+// weighted equally).
 //
-// A registration that fails (degenerate, not converged) or asks for a correction beyond
-// max_correction_m / max_correction_deg keeps the scan where it was.
+// A registration that fails (degenerate, no descent) or asks for a correction beyond
+// max_correction_m / max_correction_deg keeps the scan where it was; one that runs out of
+// iterations having cut the cost by min_unfinished_cost_cut moves it as far as it went.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -68,14 +70,21 @@ struct PoseRefinementConfig {
     /// within 0.1 points of held-out rays within 10 cm at a third less CPU time for the run;
     /// 1500 lose 0.7 points on the drive.
     int max_points = 3000;
-    /// The gauge's lever: the points that carry each scan's orientation into the alignment lie
-    /// this far along its axes, which weighs a given pose's rotation against its position as
-    /// about 5 cm against 0.3 deg. At 1 m the roll about a straight drive was left to the
-    /// positions' noise over a 1 m lever: on six simulated streets with 5 cm / 0.3 deg of noise
-    /// per scan the refined frame landed 0.10-0.81 deg from the true one (F-score up to 19.6
-    /// points lower than at true poses); at 10 m the given poses' own frame error, 0.03-0.09
-    /// deg (docs/field.md).
+    /// The gauge's lever: in the alignment a radian of a scan's orientation weighs as this many
+    /// metres of its position, so a given pose's rotation counts against its position as about
+    /// 0.3 deg against 5 cm. At 1 m the roll about a straight drive was left to the positions'
+    /// noise: on six simulated streets with 5 cm / 0.3 deg of noise per scan the refined frame
+    /// landed 0.10-0.81 deg from the true one (F-score up to 19.6 points lower than at true
+    /// poses); at 10 m the given poses' own frame error, 0.03-0.09 deg (docs/field.md). Until
+    /// 2026-12-01 the orientation entered as points this far along the scan's axes, fitted with
+    /// the positions by Umeyama, which let each scan's rotation noise move the translation and
+    /// its position noise the rotation; fitted apart, ten noisy streets of ten came within 1
+    /// point of F-score of their true-pose maps instead of eight.
     double gauge_lever_m = 10.0;
+    /// A registration that runs out of max_iterations still moves its scan when it cut the
+    /// cost by at least this share (refine_scan_poses: on noisy simulated streets such solves
+    /// cut it by 42-95 %; at true poses among moving cars on a coarse map they crept by 4-7 %).
+    double min_unfinished_cost_cut = 0.25;
     double max_correction_m = 1.0;    ///< larger corrections are rejected
     double max_correction_deg = 5.0;  ///< larger corrections are rejected
     /// The map at the refined poses starts from the first phase's map and trains the steps after
@@ -121,9 +130,12 @@ struct PoseRefinementConfig {
 
 /// What one round did.
 struct PoseRefinementRound {
-    int step = 0;                       ///< the training step before which it ran
-    std::size_t accepted = 0;           ///< scans moved
-    std::size_t rejected = 0;           ///< scans kept (failed or too large a correction)
+    int step = 0;              ///< the training step before which it ran
+    std::size_t accepted = 0;  ///< scans moved
+    /// Of the accepted: solves that ran out of iterations having cut the cost by
+    /// min_unfinished_cost_cut (the scan moved as far as they went).
+    std::size_t unfinished = 0;
+    std::size_t rejected = 0;  ///< scans kept (failed, degenerate or too large a correction)
     double median_translation_m = 0.0;  ///< of the accepted corrections
     double median_rotation_deg = 0.0;
     double max_translation_m = 0.0;
@@ -132,8 +144,9 @@ struct PoseRefinementRound {
 };
 
 /// The rigid transform G that best moves `poses` onto `reference` (one each per scan, scan
-/// order): least squares over each scan's position and the points `lever_m` along its three
-/// axes. Fewer than three scans: identity. Throws DataError on a count mismatch.
+/// order): least squares over each scan's position (metres) and its orientation (the rotation
+/// vector between them, times `lever_m`), solved by Gauss-Newton about the positions' centroid.
+/// Fewer than three scans: identity. Throws DataError on a count mismatch.
 Eigen::Isometry3d gauge_alignment(const std::vector<Eigen::Isometry3d>& poses,
                                   const std::vector<Eigen::Isometry3d>& reference, double lever_m);
 
