@@ -5,9 +5,11 @@
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "command_registry.hpp"
+#include "mapped_run.hpp"
 #include "shine/core/error.hpp"
 #include "shine/eval/ghost_area.hpp"
 #include "shine/eval/heldout_ranges.hpp"
@@ -32,6 +34,7 @@ struct EvalOptions {
     std::string frames;
     int holdout_every = 0;
     std::string poses_path;
+    std::string run_dir;  ///< --run: score as that `shine map` run did (mapped_run.hpp)
     HeldoutConfig heldout;
 };
 
@@ -49,13 +52,33 @@ int run_heldout(const EvalOptions& options) {
                                : parse_frame_list(options.frames, sequence.size());
     HeldoutConfig config = options.heldout;
     config.threshold_m = options.config.threshold_m;
+    // With --run, the scans placed and deskewed as that run placed and deskewed its held-out
+    // scans (the poses of the scans around each, never its own points).
+    std::optional<MappedRun> run;
+    if (!options.run_dir.empty()) run = read_mapped_run(options.run_dir, sequence);
+    const ScanSequence scored = run ? run->apply(sequence) : sequence;
+    DeskewStats deskew_stats;
+    ScanPreparation prepare;
+    if (run && run->deskew) {
+        prepare = [&](std::size_t frame, Scan& scan) {
+            deskew_with_sequence_poses(scan, scored, frame, *run->deskew, deskew_stats);
+        };
+    }
     const HeldoutReport report =
-        evaluate_heldout(read_ply_mesh(options.pred_path), sequence, frames, config);
+        evaluate_heldout(read_ply_mesh(options.pred_path), scored, frames, config, prepare);
     if (options.json) {
-        std::printf("%s\n", heldout_to_json(report).c_str());
+        nlohmann::json json = nlohmann::json::parse(heldout_to_json(report));
+        if (run) {
+            json["run"] = {{"dir", options.run_dir},
+                           {"placement", run->describe()},
+                           {"scans_deskewed", deskew_stats.scans_deskewed}};
+        }
+        std::printf("%s\n", json.dump().c_str());
     } else {
-        std::printf("pred     %s\nheld out %s\n%s", options.pred_path.c_str(),
-                    options.heldout_dir.c_str(), format_heldout(report).c_str());
+        std::printf("pred     %s\nheld out %s\n", options.pred_path.c_str(),
+                    options.heldout_dir.c_str());
+        if (run) std::printf("scored   %s\n", run->describe().c_str());
+        std::printf("%s", format_heldout(report).c_str());
     }
     return 0;
 }
@@ -108,6 +131,10 @@ int run_eval(const EvalOptions& options) {
             throw ConfigError("--tile-m scores a mesh against a reference mesh: use it with --ref");
         }
         return run_heldout(options);
+    }
+    if (!options.run_dir.empty()) {
+        throw ConfigError(
+            "--run places held-out scans as a mapping run did: use it with --heldout");
     }
     // read_ply_mesh throws IoError naming the file for missing or corrupt input.
     const TriangleMesh ref = read_ply_mesh(options.ref_path);
@@ -178,6 +205,11 @@ const RegisterCommand kEvalCommand(50, [](CLI::App& app, Action& action) {
         ->check(CLI::Range(2, 1000000));
     cmd->add_option("--poses", options->poses_path,
                     "with --heldout: pose file (default: found in the sequence)");
+    cmd->add_option("--run", options->run_dir,
+                    "with --heldout: the output folder of the `shine map` run the mesh came from: "
+                    "score the scans as it scored its held-out scans (at its refined poses, "
+                    "deskewed as it deskewed; the figures of its stats.json)")
+        ->excludes("--poses");
     cmd->add_option("--min-range-m", options->heldout.min_range_m,
                     "with --heldout: rays measured closer are not scored")
         ->capture_default_str();

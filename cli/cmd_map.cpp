@@ -26,12 +26,14 @@
 #include "shine/eval/metrics_report.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
+#include "shine/io/run_deskew_record.hpp"
 #include "shine/io/scan_sequence.hpp"
 #include "shine/io/tum.hpp"
 #include "shine/mapper/checkpoint.hpp"
 #include "shine/mapper/incremental_sequence.hpp"
 #include "shine/mapper/map_sequence.hpp"
 #include "shine/mapper/pose_refinement.hpp"
+#include "shine/mapper/sweep_test.hpp"
 #include "shine/model/map_file.hpp"
 #include "shine/odometry/trajectory_error.hpp"
 
@@ -978,6 +980,10 @@ int run_map(const MapOptions& given_options) {
     json["deskew"] = deskew_to_json(config.deskew, deskew_stats, config.odometry.estimate_poses);
     json["deskew"]["azimuth_times"] =
         sequence.has_sweep_times() ? sequence.sweep_times().describe() : std::string("none");
+    // Read back by `shine eval --heldout --run` (mapped_run.hpp) to time held-out scans alike.
+    if (sequence.has_sweep_times()) {
+        json["deskew"]["sweep"] = nlohmann::json::parse(sweep_record_json(sequence.sweep_times()));
+    }
     if (!refine_json.is_null()) json["refine"] = refine_json;
     if (odometry_run)
         json["deskew"]["odometry_scans_deskewed"] = odometry_run->deskew.scans_deskewed;
