@@ -660,14 +660,10 @@ int run_map(const MapOptions& given_options) {
     // Camera images colour the surface; a broken calibration is named before any mapping
     // (and before the sweep test reads scans).
     const std::optional<CameraRig> cameras = find_sequence_cameras(selected, opt.quiet || resuming);
-    // Times from the azimuth under `auto` only where they were measured to win: given poses,
-    // refined (batch mode, or incremental mode's consolidation: the refinement registers the
-    // deskewed scans; at given poses, fitted to the skewed scans, deskewing lost points on the
-    // real drive, and with estimated poses it lost 0.3-0.9 points: docs/field.md).
-    const bool refining_given_poses =
+    // Times from the azimuth where they were measured to win (sweep_times_apply).
+    const bool refining =
         opt.mode == "batch" ? config.refine.rounds > 0 : config.refines_in_consolidation();
-    if (config.deskew.azimuth_times != DeskewMode::kAuto ||
-        (refining_given_poses && !estimate_option && selected.has_poses())) {
+    if (sweep_times_apply(config.deskew, refining, estimate_option, selected)) {
         selected = with_sweep_times_if_skewed(selected, config.deskew, opt.quiet || resuming);
     }
     // --from: the old map, read before anything is written (a missing or damaged map is named

@@ -32,6 +32,22 @@ const shine::BenchRow* find_row(const std::vector<shine::BenchRow>& rows,
     return nullptr;
 }
 
+/// The bench's `method` row (its products in bench_out/`run_dir`) is the `shine map` run in
+/// map_out: the same mesh byte for byte and the same held-out figures.
+void expect_row_is_the_map_run(const fs::path& bench_out, const std::string& run_dir,
+                               shine::BenchMethod method, const fs::path& map_out) {
+    EXPECT_EQ(read_text(bench_out / run_dir / "mesh.ply"), read_text(map_out / "mesh.ply"));
+    const std::vector<shine::BenchRow> rows =
+        shine::rows_from_csv(read_text(bench_out / "bench.csv"), "bench.csv");
+    const shine::BenchRow* row = find_row(rows, method);
+    ASSERT_TRUE(row && row->heldout);
+    const nlohmann::json heldout = read_json(map_out / "stats.json").at("heldout").at("total");
+    EXPECT_EQ(row->heldout->rays, heldout.at("rays").get<std::size_t>());
+    EXPECT_NEAR(row->heldout->within_ratio, heldout.at("within_ratio").get<double>(), 1e-9);
+    EXPECT_NEAR(row->heldout->median_abs_error_m, heldout.at("median_abs_error_m").get<double>(),
+                1e-9);
+}
+
 }  // namespace
 
 TEST(BenchModesCli, IncrementalRowsBesideBatchAndTsdfOnHeldOutScans) {
@@ -141,18 +157,42 @@ TEST(BenchModesCli, BatchRowIsWhatShineMapMakesAtItsDefaults) {
                                 "' --sizes-m 0.5 --modes batch -q" + common);
     ASSERT_EQ(bench.exit_code, 0) << bench.output;
 
-    const nlohmann::json stats = read_json(map_out / "stats.json");
-    ASSERT_TRUE(stats.contains("refine")) << "pose refinement is on by default in batch mode";
-    EXPECT_EQ(read_text(bench_out / "shinevdb_0.5" / "mesh.ply"), read_text(map_out / "mesh.ply"));
-    const std::vector<shine::BenchRow> rows =
-        shine::rows_from_csv(read_text(bench_out / "bench.csv"), "bench.csv");
-    const shine::BenchRow* batch = find_row(rows, shine::BenchMethod::kShineVdb);
-    ASSERT_TRUE(batch && batch->heldout);
-    const nlohmann::json& heldout = stats.at("heldout").at("total");
-    EXPECT_EQ(batch->heldout->rays, heldout.at("rays").get<std::size_t>());
-    EXPECT_NEAR(batch->heldout->within_ratio, heldout.at("within_ratio").get<double>(), 1e-9);
-    EXPECT_NEAR(batch->heldout->median_abs_error_m, heldout.at("median_abs_error_m").get<double>(),
-                1e-9);
+    ASSERT_TRUE(read_json(map_out / "stats.json").contains("refine"))
+        << "pose refinement is on by default in batch mode";
+    expect_row_is_the_map_run(bench_out, "shinevdb_0.5", shine::BenchMethod::kShineVdb, map_out);
+}
+
+TEST(BenchModesCli, IncrementalRowIsWhatShineMapMakesInIncrementalMode) {
+    // The incremental row is `shine map --mode incremental`'s run: the kept scans' poses refined
+    // in the consolidation, the held-out scans placed with the corrections of the mapped scans
+    // around them. On a street with 5 cm / 0.3 deg of pose noise those corrections are
+    // centimetres, so scoring at the given poses would differ (it did before the row took them).
+    const fs::path street = test_dir() / "street_noisy";
+    fs::remove_all(street);
+    const CliResult sim = run("simulate -o '" + street.string() +
+                              "' --frames 9 --seed 3 --no-progress --pose-noise-m 0.05 "
+                              "--pose-noise-deg 0.3");
+    ASSERT_EQ(sim.exit_code, 0) << sim.output;
+    const fs::path config = test_dir() / "cheap_incremental.yaml";
+    std::ofstream(config) << "incremental:\n  iterations_per_frame: 5\n"
+                             "  consolidation_steps: 100\n";
+    const fs::path map_out = test_dir() / "map_incremental";
+    const fs::path bench_out = test_dir() / "bench_incremental";
+    fs::remove_all(map_out);
+    fs::remove_all(bench_out);
+    const std::string common =
+        " -c '" + config.string() + "' --threads 2 --holdout-every 3 --no-eval -q";
+    const CliResult mapped = run("map '" + street.string() + "' -o '" + map_out.string() +
+                                 "' --mode incremental --leaf-size-m 0.5" + common);
+    ASSERT_EQ(mapped.exit_code, 0) << mapped.output;
+    const CliResult bench = run("bench '" + street.string() + "' -o '" + bench_out.string() +
+                                "' --sizes-m 0.5 --modes incremental" + common);
+    ASSERT_EQ(bench.exit_code, 0) << bench.output;
+
+    ASSERT_TRUE(read_json(map_out / "stats.json").contains("refine"))
+        << "the consolidation refines given poses by default";
+    expect_row_is_the_map_run(bench_out, "shinevdb_incremental_0.5",
+                              shine::BenchMethod::kShineVdbIncremental, map_out);
 }
 
 TEST(BenchModesCli, BadModesFailBeforeAnything) {

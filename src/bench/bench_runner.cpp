@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "shine/core/atomic_file.hpp"
@@ -274,36 +275,50 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         for (const StageSeconds& frame : profile.frames) seconds += frame[Stage::kLoad];
         return seconds;
     };
-    if (config.modes.batch) {
-        // As `shine map` maps in batch mode by default: scans timed from the azimuth where the
-        // sweep test finds them skewed (with given poses and refinement), the poses refined with
-        // the map, and the held-out scans placed with the corrections of the mapped scans around
-        // them and deskewed as the mapped ones.
-        ScanSequence selected = scans.sequence();
-        if (shine_config.deskew.azimuth_times != DeskewMode::kAuto ||
-            (selected.has_poses() && shine_config.refine.rounds > 0)) {
-            selected = sequence_with_sweep_times(selected, shine_config.deskew);
+    // The scans as `shine map` reads them where it refines given poses (batch mode, incremental
+    // mode's consolidation): timed from the azimuth where the sweep test finds them skewed. The
+    // test runs once for both modes.
+    std::optional<ScanSequence> timed;
+    const auto selection_for = [&](bool refining) {
+        const ScanSequence& given = scans.sequence();
+        if (!sweep_times_apply(shine_config.deskew, refining, shine_config.odometry.estimate_poses,
+                               given)) {
+            return given;
         }
+        if (!timed) timed = sequence_with_sweep_times(given, shine_config.deskew);
+        return *timed;
+    };
+    // Each scan placed as `shine map` scores it: a mapped one at its refined pose, a held-out one
+    // with the corrections of the mapped scans around it (never with its own points).
+    const auto placed = [&](const ScanSequence& selected,
+                            const std::vector<Eigen::Isometry3d>& refined_mapped) {
+        if (refined_mapped.empty()) return selected;
+        std::vector<Eigen::Isometry3d> given(selected.size());
+        for (std::size_t i = 0; i < selected.size(); ++i) given[i] = selected.pose(i);
+        return selected.with_poses(poses_with_corrections(selected, mapped, given, refined_mapped));
+    };
+    // Held-out scans deskewed as the mapped ones were, with the poses they are scored at.
+    const auto deskewing = [&](const ScanSequence& scored, DeskewStats& stats) {
+        ScanPreparation prepare;
+        if (deskew_active(shine_config.deskew, shine_config.odometry.estimate_poses,
+                          scored.has_sweep_times())) {
+            prepare = [&scored, &stats, &shine_config](std::size_t frame, Scan& scan) {
+                deskew_with_sequence_poses(scan, scored, frame, shine_config.deskew, stats);
+            };
+        }
+        return prepare;
+    };
+    if (config.modes.batch) {
+        // As `shine map` maps in batch mode by default: the poses refined with the map, the
+        // held-out scans placed and deskewed as above.
+        const ScanSequence selected = selection_for(shine_config.refine.rounds > 0);
         const fs::path dir = bench_run_dir(out_dir, BenchMethod::kShineVdb, size_m);
         const auto t0 = std::chrono::steady_clock::now();
         SequenceMap run = map_sequence(shine_config, selected.subset(mapped), dir, "batch " + tag);
         const double wall_seconds = seconds_since(t0) - read_seconds(run.profile);
-
-        ScanSequence scored = selected;
-        if (!run.refined_poses_world.empty()) {
-            std::vector<Eigen::Isometry3d> given(selected.size());
-            for (std::size_t i = 0; i < selected.size(); ++i) given[i] = selected.pose(i);
-            scored = selected.with_poses(
-                poses_with_corrections(selected, mapped, given, run.refined_poses_world));
-        }
-        ScanPreparation prepare;
+        const ScanSequence scored = placed(selected, run.refined_poses_world);
         DeskewStats deskew_stats;
-        if (deskew_active(shine_config.deskew, shine_config.odometry.estimate_poses,
-                          selected.has_sweep_times())) {
-            prepare = [&](std::size_t frame, Scan& scan) {
-                deskew_with_sequence_poses(scan, scored, frame, shine_config.deskew, deskew_stats);
-            };
-        }
+        const ScanPreparation prepare = deskewing(scored, deskew_stats);
 
         BenchRow row = shine_row;
         fill_shine_row(row, run.mapper->stats(), run.mapper->sdf(), dir, wall_seconds);
@@ -320,12 +335,17 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
 
     if (config.modes.incremental) {
         // As `shine map --mode incremental` maps the scans it is given: read one by one, mapped,
-        // consolidated, products written.
+        // consolidated (the kept scans' poses refined there), products written; the held-out
+        // scans placed and deskewed as above.
+        const ScanSequence selected = selection_for(shine_config.refines_in_consolidation());
         const fs::path dir = bench_run_dir(out_dir, BenchMethod::kShineVdbIncremental, size_m);
         const auto t0 = std::chrono::steady_clock::now();
-        IncrementalSequenceMap run = map_sequence_incremental(
-            shine_config, scans.sequence().subset(mapped), dir, "incremental " + tag);
+        IncrementalSequenceMap run = map_sequence_incremental(shine_config, selected.subset(mapped),
+                                                              dir, "incremental " + tag);
         const double wall_seconds = seconds_since(t0) - read_seconds(run.profile);
+        const ScanSequence scored = placed(selected, run.refined_poses_world);
+        DeskewStats deskew_stats;
+        const ScanPreparation prepare = deskewing(scored, deskew_stats);
 
         BenchRow row;
         row.method = BenchMethod::kShineVdbIncremental;
@@ -334,7 +354,7 @@ std::vector<BenchRow> run_bench_size(const BenchConfig& config, double size_m,
         const std::size_t triangles = run.products.mesh.triangles;
         run.mapper.reset();
         Progress progress("incremental " + tag, 1);
-        evaluate_shine(row, dir, progress, 0, scans.sequence(), {});
+        evaluate_shine(row, dir, progress, 0, scored, prepare);
         progress.finish(std::to_string(triangles) + " triangles");
         rows.push_back(row);
     }

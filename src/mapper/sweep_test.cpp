@@ -171,6 +171,12 @@ SweepTestResult run_sweep_test(const ScanSequence& sequence, const SweepTimeMode
     return result;
 }
 
+bool sweep_times_apply(const DeskewConfig& config, bool refining, bool estimate_poses,
+                       const ScanSequence& sequence) {
+    return config.azimuth_times != DeskewMode::kAuto ||
+           (refining && !estimate_poses && sequence.has_poses());
+}
+
 ScanSequence sequence_with_sweep_times(const ScanSequence& sequence, const DeskewConfig& config,
                                        SweepTestResult* result) {
     if (result) *result = SweepTestResult{};

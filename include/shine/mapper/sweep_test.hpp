@@ -64,6 +64,15 @@ struct SweepTestResult {
 SweepTestResult run_sweep_test(const ScanSequence& sequence, const SweepTimeModel& model,
                                const SweepTestConfig& config = {});
 
+/// Whether a run times `sequence`'s scans from the azimuth (sequence_with_sweep_times): always
+/// unless config.azimuth_times is auto, and under auto only where it was measured to win, given
+/// poses that the run refines (`refining`: batch mode's refinement, or incremental mode's
+/// consolidation) and does not estimate. The refinement registers the deskewed scans; at given
+/// poses, fitted to the skewed scans, deskewing lost points on the real drive, and with estimated
+/// poses it lost 0.3-0.9 points (docs/field.md).
+bool sweep_times_apply(const DeskewConfig& config, bool refining, bool estimate_poses,
+                       const ScanSequence& sequence);
+
 /// `sequence` timed from the azimuth as config.azimuth_times says (on: config.sweep; auto: the
 /// sweep test's verdict, with config.sweep's start and pose azimuths; off: unchanged). A sequence
 /// whose scans carry times of their own is returned unchanged. `result` (optional) receives the
