@@ -104,17 +104,35 @@ VertexColours VertexColourFit::solve() const {
     for (std::size_t i = 0; i < n; ++i) {
         if (support_[i] > 0.0) colour[i] = rhs_[i] / support_[i];
     }
+    // The smoothness term joins vertices a pixel reached: an unseen vertex has no colour to
+    // pull towards.
+    const double smoothness = std::max(0.0, config_.smoothness);
+    const auto smoothed = [&](int from, int to) {
+        return smoothness > 0.0 && support_[from] > 0.0 && support_[to] > 0.0;
+    };
     for (std::size_t t = 0; t < blocks_.size(); ++t) {
-        for (int k = 0; k < 3; ++k) diagonal[mesh_.triangles[t][k]] += blocks_[t][kBlock[k][k]];
+        const Eigen::Vector3i& tri = mesh_.triangles[t];
+        for (int k = 0; k < 3; ++k) {
+            diagonal[tri[k]] += blocks_[t][kBlock[k][k]];
+            for (int j = 1; j <= 2; ++j) {
+                if (smoothed(tri[k], tri[(k + j) % 3])) diagonal[tri[k]] += smoothness;
+            }
+        }
     }
     for (int step = 0; step < config_.iterations; ++step) {
-        std::vector<Eigen::Vector3d> residual = rhs_;  // A^T y - A^T A c
+        std::vector<Eigen::Vector3d> residual = rhs_;  // A^T y - (A^T A + smoothness L) c
         for (std::size_t t = 0; t < blocks_.size(); ++t) {
             const Eigen::Vector3i& tri = mesh_.triangles[t];
             for (int r = 0; r < 3; ++r) {
                 for (int c = 0; c < 3; ++c) {
                     residual[tri[r]] -=
                         static_cast<double>(blocks_[t][kBlock[r][c]]) * colour[tri[c]];
+                }
+                for (int j = 1; j <= 2; ++j) {
+                    const int other = tri[(r + j) % 3];
+                    if (smoothed(tri[r], other)) {
+                        residual[tri[r]] -= smoothness * (colour[tri[r]] - colour[other]);
+                    }
                 }
             }
         }
