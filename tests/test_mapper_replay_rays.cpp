@@ -1,7 +1,8 @@
 // The kept replay set (replay_rays.hpp) against the set assembled afresh from the window, as the
 // incremental mapper assembled it before: through a window that grows, slides, has the scans at
 // its end thinned and their normals changed, is restored empty, and asks for fewer scans than
-// it holds. Also RaySet's truncate() and erase_front() against sets built from the kept scans.
+// it holds. Also RaySet's truncate(), erase_front() and keep_rays() against sets built from the
+// kept scans.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 
 #include "shine/core/error.hpp"
 #include "shine/core/random.hpp"
+#include "shine/geometry/voxel_groups.hpp"
 #include "shine/mapper/replay_rays.hpp"
 #include "shine/sampling/ray_set.hpp"
 
@@ -156,6 +158,80 @@ TEST(RaySet, TruncateAndEraseFrontKeepTheOtherScansAsAddedAfresh) {
             expect_equal(back, again);
         }
     }
+}
+
+TEST(RaySet, KeepRaysInPlaceEqualsTheKeptRaysAddedAfresh) {
+    // keep_rays() against each scan's kept rays filtered by filter_voxel_grouped() and added to
+    // a new set: grouped and not, with and without an origin per ray, a scan without rays, a
+    // scan that loses every ray and runs that lose every ray.
+    Pcg32 rng(21);
+    std::vector<ScanInMap> scans;
+    for (int s = 0; s < 7; ++s) scans.push_back(random_scan(rng, 40));
+    scans[2].points_map.clear();
+    for (const bool grouped : {false, true}) {
+        for (const bool with_origins : {false, true}) {
+            std::vector<std::vector<std::uint32_t>> voxels(scans.size());
+            std::vector<std::vector<Eigen::Vector3f>> origins(scans.size());
+            RaySet set;
+            for (std::size_t s = 0; s < scans.size(); ++s) {
+                const std::size_t n = scans[s].points_map.size();
+                if (grouped && n > 0) {
+                    for (std::uint32_t i = 0; i < n;
+                         i += 1 + static_cast<std::uint32_t>(rng.below64(4))) {
+                        voxels[s].push_back(i);
+                    }
+                }
+                if (with_origins && s % 2 == 1) {
+                    for (std::size_t i = 0; i < n; ++i) {
+                        origins[s].push_back(Eigen::Vector3f(float(s), float(i), 0.5f));
+                    }
+                }
+                set.add_scan(scans[s].origin_map, scans[s].points_map, voxels[s], origins[s]);
+            }
+            std::vector<std::uint8_t> keep(set.num_rays());
+            for (std::size_t r = 0; r < keep.size(); ++r) {
+                const std::uint32_t s = set.scan_of_ray(r);
+                keep[r] = s == 4 ? 0 : (rng.below64(3) != 0);
+            }
+            RaySet fresh;
+            std::size_t removed = 0;
+            for (std::uint32_t s = 0; s < set.num_scans(); ++s) {
+                const std::size_t begin = set.first_ray(s);
+                std::vector<Eigen::Vector3f> points = scans[s].points_map;
+                std::vector<std::uint32_t> runs = voxels[s];
+                std::vector<Eigen::Vector3f> ray_origins;
+                if (set.has_ray_origins()) {
+                    for (std::size_t i = 0; i < points.size(); ++i) {
+                        ray_origins.push_back(set.origin_of_ray(begin + i));
+                    }
+                }
+                removed += filter_voxel_grouped(
+                    points, runs, [&](std::size_t i, std::size_t) { return keep[begin + i] != 0; },
+                    &ray_origins);
+                fresh.add_scan(set.origin_of_scan(s), points, runs, ray_origins);
+            }
+            EXPECT_EQ(set.keep_rays(keep), removed);
+            ASSERT_EQ(set.num_rays(), fresh.num_rays());
+            ASSERT_EQ(set.num_scans(), fresh.num_scans());
+            ASSERT_EQ(set.num_groups(), fresh.num_groups());
+            EXPECT_EQ(set.has_ray_origins(), fresh.has_ray_origins());
+            for (std::uint32_t s = 0; s <= set.num_scans(); ++s) {
+                EXPECT_EQ(set.first_ray(s), fresh.first_ray(s));
+            }
+            EXPECT_EQ(set.first_ray(5), set.first_ray(4));  // scan 4 lost every ray
+            for (std::size_t r = 0; r < set.num_rays(); ++r) {
+                EXPECT_EQ(set.endpoint(r), fresh.endpoint(r));
+                EXPECT_EQ(set.scan_of_ray(r), fresh.scan_of_ray(r));
+                EXPECT_EQ(set.origin_of_ray(r), fresh.origin_of_ray(r));
+            }
+            for (std::size_t g = 0; g <= set.num_groups(); ++g) {
+                EXPECT_EQ(set.first_ray_of_group(g), fresh.first_ray_of_group(g));
+            }
+        }
+    }
+    RaySet set;
+    set.add_scan(Eigen::Vector3f::Zero(), {{1, 0, 0}, {0, 1, 0}});
+    EXPECT_THROW(set.keep_rays({1}), DataError);
 }
 
 TEST(RaySet, NormalsOfAScanMustMatchItsPoints) {

@@ -172,29 +172,21 @@ void BatchMapper::drop_dynamic_points() {
         }
         stats_.moving_objects += motion.moving_objects;
     }
-    RaySet kept;
-    std::vector<Eigen::Vector3f> origins;
-    std::size_t dropped = 0;
-    for (std::uint32_t s = 0; s < num_scans; ++s) {
-        const std::size_t begin = rays_.first_ray(s), end = rays_.first_ray(s + 1);
-        std::vector<Eigen::Vector3f>& points = scan_points[s];
-        origins.clear();
-        if (rays_.has_ray_origins()) {
-            for (std::size_t r = begin; r < end; ++r) origins.push_back(rays_.origin_of_ray(r));
-        }
-        std::vector<std::uint32_t> voxel_begin = rays_.scan_voxel_begin(s);
-        if (objects[s].object_of.size() == points.size()) {
-            stats_.dynamic_objects +=
+    // The dynamic points' whole objects too; then the static rays are kept, in place.
+    std::vector<std::uint8_t> keep(rays_.num_rays(), 0);
+    std::vector<std::size_t> objects_dynamic(num_scans, 0);
+    tbb::parallel_for(std::uint32_t(0), num_scans, [&](std::uint32_t s) {
+        const std::size_t begin = rays_.first_ray(s);
+        if (objects[s].object_of.size() == scan_points[s].size()) {
+            objects_dynamic[s] =
                 spread_dynamic_to_objects(objects[s], dynamic[s], config_.dynamic.objects)
                     .objects_dynamic;
         }
-        const std::vector<std::uint8_t>& flags = dynamic[s];
-        dropped += filter_voxel_grouped(
-            points, voxel_begin, [&](std::size_t i, std::size_t) { return !flags[i]; }, &origins);
-        kept.add_scan(rays_.origin_of_scan(s), points, voxel_begin, origins);
-        std::vector<Eigen::Vector3f>().swap(points);
-    }
-    rays_ = std::move(kept);
+        for (std::size_t i = 0; i < dynamic[s].size(); ++i) keep[begin + i] = !dynamic[s][i];
+    });
+    for (const std::size_t count : objects_dynamic) stats_.dynamic_objects += count;
+    scan_points.clear();  // their memory, before the rays are compacted
+    const std::size_t dropped = rays_.keep_rays(keep);
     votes_ = {};
     group_leads_ = {};
     voters_ = {};

@@ -1,6 +1,7 @@
 #include "shine/sampling/ray_set.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <numeric>
 #include <string>
 #include <utility>
@@ -60,6 +61,51 @@ std::uint32_t RaySet::add_scan(const Eigen::Vector3f& origin_map,
         ray_origins_.resize(endpoints_.size(), origin_map);
     }
     return scan;
+}
+
+std::size_t RaySet::keep_rays(const std::vector<std::uint8_t>& keep) {
+    const std::size_t n = endpoints_.size();
+    if (keep.size() != n) {
+        throw DataError("RaySet::keep_rays: " + std::to_string(keep.size()) + " flags for " +
+                        std::to_string(n) + " rays");
+    }
+    const bool with_normals = !normals_.empty(), with_origins = !ray_origins_.empty();
+    const bool with_groups = grouped();
+    std::size_t kept = 0;
+    std::size_t groups = 0;  // groups written so far (group_begin_ is rewritten in place)
+    std::size_t group = 0;   // the group of ray r, when grouped
+    for (std::uint32_t s = 0; s < origins_.size(); ++s) {
+        const std::size_t begin = scan_begin_[s], end = scan_begin_[s + 1];
+        scan_begin_[s] = kept;
+        // The first group of this scan (groups never span two scans).
+        std::size_t last_opened = std::numeric_limits<std::size_t>::max();
+        for (std::size_t r = begin; r < end; ++r) {
+            if (with_groups) {
+                while (group_begin_[group + 1] <= r) ++group;
+            }
+            if (!keep[r]) continue;
+            if (with_groups && group != last_opened) {
+                // group_begin_[groups] is no longer read: groups <= group.
+                group_begin_[groups++] = kept;
+                last_opened = group;
+            }
+            endpoints_[kept] = endpoints_[r];
+            scan_of_ray_[kept] = scan_of_ray_[r];
+            if (with_normals) normals_[kept] = normals_[r];
+            if (with_origins) ray_origins_[kept] = ray_origins_[r];
+            ++kept;
+        }
+    }
+    scan_begin_[origins_.size()] = kept;
+    endpoints_.resize(kept);
+    scan_of_ray_.resize(kept);
+    if (with_normals) normals_.resize(kept);
+    if (with_origins) ray_origins_.resize(kept);
+    if (with_groups) {
+        group_begin_.resize(groups);
+        group_begin_.push_back(kept);
+    }
+    return n - kept;
 }
 
 std::uint32_t RaySet::add_scan_with_normals(const Eigen::Vector3f& origin_map,

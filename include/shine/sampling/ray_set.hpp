@@ -39,6 +39,12 @@ class RaySet {
     /// (mapper/pose_refinement.hpp) corrects a scan this way; nothing else changes (grouping,
     /// order). Throws DataError for a scan index out of range.
     void transform_scan(std::uint32_t scan, const Eigen::Isometry3f& T_new_old);
+    /// Keeps the rays r with keep[r] != 0 (one flag per ray), in place and in order: each scan
+    /// keeps its place (and origin) and loses its removed rays, a voxel group loses its removed
+    /// rays and disappears when none is left; as if each scan's kept rays were added again with
+    /// filter_voxel_grouped()'s runs (voxel_groups.hpp), without new storage. Returns the number
+    /// of rays removed. Throws DataError for a flag count other than num_rays().
+    std::size_t keep_rays(const std::vector<std::uint8_t>& keep);
     /// Keeps the first `num_scans` scans (at most num_scans()) and drops the rest.
     void truncate(std::uint32_t num_scans);
     /// Drops the first `num_scans` scans (at most num_scans()); the later scans and their rays
