@@ -293,13 +293,27 @@ constexpr std::size_t kSearchPoints = 64;
 /// from the scan before (where the object, unshifted, matches at most 1 - min_gain of its
 /// points); a candidate is refined on the window's scans and is the object's velocity when the
 /// object, moved at it, matches at least min_scan_share of the window's scans and, left in
-/// place, at most max_still_share of them.
+/// place, at most max_still_share of them (which is tested first, for every candidate alike).
 template <class TableAt>
 Velocity object_velocity(const std::vector<Eigen::Vector3f>& sample, const TableAt& table_at,
                          bool past_only, const MovingObjectConfig& config) {
     constexpr std::size_t kCandidates = 4;  // per neighbouring scan
     const auto window = static_cast<std::ptrdiff_t>(config.window_scans);
     const std::ptrdiff_t last = past_only ? -1 : window;
+    // The window's scans, and those of them that hold the object in place: neither depends on
+    // the velocity, so an object that too few scans see, or too many hold in place, moves at no
+    // velocity, and its candidates need not be searched.
+    int seen = 0, still = 0;
+    for (std::ptrdiff_t k = -window; k <= last; ++k) {
+        const CellTable* table = k == 0 ? nullptr : table_at(k);
+        if (table == nullptr) continue;
+        ++seen;
+        still += match_share(sample, Eigen::Vector2f::Zero(), *table) >= config.min_match_share;
+    }
+    if (seen < config.min_window_scans ||
+        static_cast<float>(still) > config.max_still_share * static_cast<float>(seen)) {
+        return Velocity{};
+    }
     std::vector<Eigen::Vector2f> candidates;
     for (int dir : {1, -1}) {
         if (past_only && dir > 0) continue;
@@ -341,19 +355,16 @@ Velocity object_velocity(const std::vector<Eigen::Vector3f>& sample, const Table
         v = refine_step(v, 0.2f * config.search_m, 0.1f * config.search_m,
                         [&](const Eigen::Vector2f& u) { return window_share(u, window); });
         if (v.norm() < config.min_step_m) continue;
-        int matched = 0, still = 0, seen = 0;
+        int matched = 0;
         for (std::ptrdiff_t k = -window; k <= last; ++k) {
             const CellTable* table = k == 0 ? nullptr : table_at(k);
             if (table == nullptr) continue;
-            ++seen;
             matched +=
                 match_share(sample, static_cast<float>(k) * v, *table) >= config.min_match_share;
-            still += match_share(sample, Eigen::Vector2f::Zero(), *table) >= config.min_match_share;
         }
+        // seen and still passed above.
         const bool moves =
-            seen >= config.min_window_scans &&
-            static_cast<float>(matched) >= config.min_scan_share * static_cast<float>(seen) &&
-            static_cast<float>(still) <= config.max_still_share * static_cast<float>(seen);
+            static_cast<float>(matched) >= config.min_scan_share * static_cast<float>(seen);
         if (moves && matched > best_matched) {
             best_matched = matched;
             result = {v, true};
