@@ -74,11 +74,12 @@ std::size_t RaySet::keep_rays(const std::vector<std::uint8_t>& keep) {
     std::size_t kept = 0;
     std::size_t groups = 0;  // groups written so far (group_begin_ is rewritten in place)
     std::size_t group = 0;   // the group of ray r, when grouped
+    // The last group that has a kept ray (groups never span two scans, so a scan's first kept
+    // ray always opens a group).
+    std::size_t last_opened = std::numeric_limits<std::size_t>::max();
     for (std::uint32_t s = 0; s < origins_.size(); ++s) {
         const std::size_t begin = scan_begin_[s], end = scan_begin_[s + 1];
         scan_begin_[s] = kept;
-        // The first group of this scan (groups never span two scans).
-        std::size_t last_opened = std::numeric_limits<std::size_t>::max();
         for (std::size_t r = begin; r < end; ++r) {
             if (with_groups) {
                 while (group_begin_[group + 1] <= r) ++group;
