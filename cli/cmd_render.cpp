@@ -23,10 +23,12 @@
 #include "cli_common.hpp"
 #include "command_registry.hpp"
 #include "shine/colour/camera_view.hpp"
+#include "shine/colour/exposure_record.hpp"
 #include "shine/colour/photometric_score.hpp"
 #include "shine/core/atomic_file.hpp"
 #include "shine/core/error.hpp"
 #include "shine/io/camera_rig.hpp"
+#include "shine/io/file_contents.hpp"
 #include "shine/io/kitti.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/io/scan_sequence.hpp"
@@ -186,10 +188,12 @@ CalibratedView find_calibrated_view(const RenderOptions& opt, const ScanSequence
     return view;
 }
 
-/// Renders frame `opt.frame` of `seq` through `view`'s camera; adds the products and prints what
-/// it compared.
+/// Renders frame `opt.frame` of `seq` through `view`'s camera, at the exposure the run's
+/// stats.json beside `mesh_path` gives that frame (none: as fitted); adds the products and prints
+/// what it compared.
 void render_calibrated_frame(const RenderOptions& opt, const FrameSequence& seq,
-                             CalibratedView& view, const TriangleMesh& mesh, const fs::path& out,
+                             CalibratedView& view, const TriangleMesh& mesh,
+                             const fs::path& mesh_path, const fs::path& out,
                              std::vector<Product>& products) {
     const ScanSequence& sequence = seq.sequence;
     const CameraRig& rig = view.rig;
@@ -200,7 +204,22 @@ void render_calibrated_frame(const RenderOptions& opt, const FrameSequence& seq,
     std::optional<RgbImage>& photo = view.photo;
     const Eigen::Isometry3d T_map_camera =
         camera_pose_in_map(camera, sequence.pose(frame), mesh.origin_world_m);
-    CalibratedCameraRendering r = render_calibrated_camera(mesh, camera, T_map_camera);
+    // The colours at this camera's exposure then: the gains the run fitted to its mapped images
+    // (stats.json beside the mesh), read at this frame.
+    const fs::path stats_path = mesh_path.parent_path() / "stats.json";
+    double exposure_gain = 1.0;
+    if (!mesh.vertex_rgb.empty() && fs::exists(stats_path)) {
+        const ExposureTrack track = read_exposure_record(
+            read_file_contents(stats_path, "run stats", "the stats.json beside the mesh"),
+            stats_path.string());
+        if (!track.empty()) {
+            exposure_gain = track.gain_at(camera.name, sequence.frame_number(frame));
+            std::printf("exposure: gain %.3f at frame %d, from the mapped images' (%s)\n",
+                        exposure_gain, opt.frame, stats_path.c_str());
+        }
+    }
+    CalibratedCameraRendering r =
+        render_calibrated_camera(mesh, camera, T_map_camera, 0.3, exposure_gain);
     std::printf("camera %s (%s layout, %d x %d, fx %.1f) of %s at frame %d's pose\n",
                 camera.name.c_str(), rig.layout.c_str(), camera.width, camera.height, camera.fx,
                 scan_path.filename().c_str(), opt.frame);
@@ -409,7 +428,8 @@ int run_render(const RenderOptions& opt) {
         }
         std::printf("poses: %s\n", frame_sequence.poses_used.c_str());
         if (opt.calibrated_camera) {
-            render_calibrated_frame(opt, frame_sequence, *calibrated, mesh, out, products);
+            render_calibrated_frame(opt, frame_sequence, *calibrated, mesh, inputs.mesh_path, out,
+                                    products);
         } else {
             render_sensor_frame(opt, sequence, mesh, camera, look_at_world, out, products);
         }

@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "shine/colour/camera_view.hpp"
+#include "shine/colour/exposure_record.hpp"
 #include "shine/colour/photometric_score.hpp"
 #include "shine/io/ply.hpp"
 #include "shine/mapper/surface_appearance.hpp"
@@ -42,6 +43,9 @@ void add_map_appearance(const fs::path& out, const ScanSequence& mapped, const M
                           {"intensity_vertices", s.intensity_vertices},
                           {"intensity_voxels", s.intensity_voxels},
                           {"seconds", s.seconds}};
+    if (!s.exposure.empty()) {
+        json["appearance"]["exposure"] = nlohmann::json::parse(exposure_record_json(s.exposure));
+    }
     std::string what;
     if (s.colour) {
         char text[160];
@@ -79,14 +83,23 @@ void score_heldout_colours(const fs::path& out, const ScanSequence& scored,
     };
     const std::vector<CameraView> heldout = views_of(split.heldout);
     if (heldout.empty()) return;
-    const HeldoutColourScores scores = score_heldout_images(mesh, views_of(split.mapped), heldout);
+    // Each held-out camera at the exposure of the mapped images around it.
+    const ExposureTrack track = read_exposure_record(json.dump(), (out / "stats.json").string());
+    std::vector<double> gains;
+    for (const CameraView& view : heldout) {
+        gains.push_back(track.gain_at(view.camera.name, scored.frame_number(view.scan_index)));
+    }
+    const HeldoutColourScores scores =
+        score_heldout_images(mesh, views_of(split.mapped), heldout, gains);
     nlohmann::json frames = nlohmann::json::array();
-    for (const HeldoutImageScore& f : scores.frames) {
+    for (std::size_t k = 0; k < scores.frames.size(); ++k) {
+        const HeldoutImageScore& f = scores.frames[k];
         frames.push_back({{"scan", f.scan_index},
                           {"image", f.image_path.string()},
                           {"psnr_db", f.map.psnr_db},
                           {"baseline_psnr_db", f.baseline.psnr_db},
-                          {"hit_share", f.map.hit_share}});
+                          {"hit_share", f.map.hit_share},
+                          {"exposure_gain", gains[k]}});
     }
     json["heldout_colour"] = {{"images", scores.frames.size()},
                               {"psnr_db", scores.map_psnr_db},

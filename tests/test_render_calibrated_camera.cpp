@@ -2,6 +2,7 @@
 // and random triangles whose 8-bit picture must be the colour yardstick's own rendering.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -132,6 +133,21 @@ TEST(CalibratedCamera, PictureIsTheColourYardsticksRendering) {
     EXPECT_GT(hits, r.picture.hit.size() / 4);  // the scene is not empty
     const PhotometricScore self = score_rendering(r.picture, reference.image);
     EXPECT_TRUE(std::isinf(self.psnr_db));
+    // At another exposure both scale alike (clamped at 255), and the picture changes.
+    for (const double gain : {0.8, 1.3}) {
+        const CalibratedCameraRendering scaled =
+            render_calibrated_camera(mesh, camera, T_map_camera, 0.3, gain);
+        EXPECT_EQ(scaled.picture.image.pixels(),
+                  render_vertex_colours(mesh, mesh.vertex_rgb, camera, T_map_camera, gain)
+                      .image.pixels());
+        EXPECT_NE(scaled.picture.image.pixels(), reference.image.pixels());
+        float brightest = 0.0f;  // linear light, NaN where no surface
+        for (const float value : scaled.layers.channel("color.R")) {
+            if (!std::isnan(value)) brightest = std::max(brightest, value);
+        }
+        EXPECT_LE(brightest, 1.0f);
+        if (gain > 1.0) EXPECT_EQ(brightest, 1.0f);  // some red of 200+ went past 255
+    }
 }
 
 TEST(CalibratedCamera, WithoutColoursIntensityIsGrey) {

@@ -31,7 +31,7 @@ Eigen::Vector3d sample_bilinear(const RgbImage& image, double u, double v) {
 ColourRendering render_vertex_colours(const TriangleMesh& mesh,
                                       const std::vector<std::array<std::uint8_t, 3>>& vertex_rgb,
                                       const RigCamera& camera,
-                                      const Eigen::Isometry3d& T_map_camera) {
+                                      const Eigen::Isometry3d& T_map_camera, double exposure_gain) {
     if (vertex_rgb.size() != mesh.vertices.size()) {
         throw DataError("render_vertex_colours: " + std::to_string(vertex_rgb.size()) +
                         " colours for " + std::to_string(mesh.vertices.size()) + " vertices");
@@ -53,9 +53,9 @@ ColourRendering render_vertex_colours(const TriangleMesh& mesh,
                     Rgb pixel;
                     std::uint8_t* channels[3] = {&pixel.r, &pixel.g, &pixel.b};
                     for (int k = 0; k < 3; ++k) {
-                        const double value = w0 * vertex_rgb[tri[0]][k] +
-                                             w1 * vertex_rgb[tri[1]][k] +
-                                             w2 * vertex_rgb[tri[2]][k];
+                        const double value = exposure_gain * (w0 * vertex_rgb[tri[0]][k] +
+                                                              w1 * vertex_rgb[tri[1]][k] +
+                                                              w2 * vertex_rgb[tri[2]][k]);
                         *channels[k] =
                             static_cast<std::uint8_t>(std::lround(std::clamp(value, 0.0, 255.0)));
                     }
@@ -134,20 +134,27 @@ namespace shine {
 
 HeldoutColourScores score_heldout_images(const TriangleMesh& mesh,
                                          const std::vector<CameraView>& mapped,
-                                         const std::vector<CameraView>& heldout) {
+                                         const std::vector<CameraView>& heldout,
+                                         const std::vector<double>& heldout_gains) {
     if (mesh.vertex_rgb.size() != mesh.vertices.size()) {
         throw DataError("held-out colour score: the mesh has no vertex colours");
+    }
+    if (!heldout_gains.empty() && heldout_gains.size() != heldout.size()) {
+        throw DataError("held-out colour score: " + std::to_string(heldout_gains.size()) +
+                        " exposure gains for " + std::to_string(heldout.size()) + " views");
     }
     const std::vector<std::array<std::uint8_t, 3>> baseline = nearest_camera_colours(mesh, mapped);
     HeldoutColourScores out;
     double map_squared = 0.0, baseline_squared = 0.0;
     std::size_t hits = 0, pixels = 0;
-    for (const CameraView& view : heldout) {
+    for (std::size_t h = 0; h < heldout.size(); ++h) {
+        const CameraView& view = heldout[h];
+        const double gain = heldout_gains.empty() ? 1.0 : heldout_gains[h];
         HeldoutImageScore frame;
         frame.scan_index = view.scan_index;
         frame.image_path = view.image_path;
         frame.map = score_rendering(
-            render_vertex_colours(mesh, mesh.vertex_rgb, view.camera, view.T_map_camera),
+            render_vertex_colours(mesh, mesh.vertex_rgb, view.camera, view.T_map_camera, gain),
             view.image);
         frame.baseline = score_rendering(
             render_vertex_colours(mesh, baseline, view.camera, view.T_map_camera), view.image);

@@ -180,15 +180,19 @@ SurfaceAppearanceStats add_surface_appearance(const fs::path& out_dir, const Sca
         // One image at a time: loaded, placed, the mesh rasterised into it, its pixels added to
         // the fit, and dropped.
         VertexColourFit fit(mesh, appearance.fit);
+        std::vector<ExposureGain> exposure;
         for (std::size_t i = 0; i < mapped.size(); ++i) {
             for (const CameraView& view : load_camera_views(
                      *rig, {mapped.scan_path(i)}, {mapped.pose(i)}, mesh.origin_world_m, {i})) {
                 fit.add_view(
                     view, rasterize_mesh(mesh, view.camera, view.T_map_camera, appearance.near_m));
+                exposure.push_back({view.camera.name, mapped.frame_number(i), 1.0});
                 ++stats.views;
             }
         }
         VertexColours fused = fit.solve();
+        for (std::size_t k = 0; k < exposure.size(); ++k) exposure[k].gain = fused.view_gains[k];
+        stats.exposure = ExposureTrack(std::move(exposure));
         stats.coloured_vertices = fused.coloured;
         std::vector<std::uint8_t> known(fused.support.size());
         for (std::size_t i = 0; i < known.size(); ++i) known[i] = fused.support[i] > 0.0f;

@@ -42,7 +42,7 @@ double srgb_to_linear(double encoded) {
 CalibratedCameraRendering render_calibrated_camera(const TriangleMesh& mesh,
                                                    const RigCamera& camera,
                                                    const Eigen::Isometry3d& T_map_camera,
-                                                   double near_m) {
+                                                   double near_m, double exposure_gain) {
     using namespace calibrated_camera_internal;
     if (mesh.triangles.empty()) {
         throw DataError("the map's mesh has no triangles: nothing to render");
@@ -131,14 +131,17 @@ CalibratedCameraRendering render_calibrated_camera(const TriangleMesh& mesh,
                 if (has_rgb) {
                     std::array<double, 3> value{};
                     for (int k = 0; k < 3; ++k) {
-                        value[k] = w[0] * mesh.vertex_rgb[tri[0]][k] +
-                                   w[1] * mesh.vertex_rgb[tri[1]][k] +
-                                   w[2] * mesh.vertex_rgb[tri[2]][k];
+                        value[k] = exposure_gain * (w[0] * mesh.vertex_rgb[tri[0]][k] +
+                                                    w[1] * mesh.vertex_rgb[tri[1]][k] +
+                                                    w[2] * mesh.vertex_rgb[tri[2]][k]);
                     }
                     pixel = {to_byte(value[0]), to_byte(value[1]), to_byte(value[2])};
-                    red[i] = static_cast<float>(srgb_to_linear(value[0] / 255.0));
-                    green[i] = static_cast<float>(srgb_to_linear(value[1] / 255.0));
-                    blue[i] = static_cast<float>(srgb_to_linear(value[2] / 255.0));
+                    const auto linear = [](double srgb) {
+                        return static_cast<float>(srgb_to_linear(std::min(srgb, 255.0) / 255.0));
+                    };
+                    red[i] = linear(value[0]);
+                    green[i] = linear(value[1]);
+                    blue[i] = linear(value[2]);
                 } else if (out.shading == CameraShading::kIntensity) {
                     // Black where the surface's intensity is unknown.
                     const std::uint8_t grey =

@@ -29,11 +29,14 @@ struct ColourRendering {
 };
 
 /// Renders `mesh` with `vertex_rgb` (one per vertex) as seen by `camera` at `T_map_camera`.
-/// Pixels meeting no triangle are black. Throws DataError for a wrong vertex_rgb size.
+/// Pixels meeting no triangle are black. `exposure_gain` scales the colours (the camera's
+/// exposure against the one the colours were fitted at; camera_exposure.hpp). Throws DataError
+/// for a wrong vertex_rgb size.
 ColourRendering render_vertex_colours(const TriangleMesh& mesh,
                                       const std::vector<std::array<std::uint8_t, 3>>& vertex_rgb,
                                       const RigCamera& camera,
-                                      const Eigen::Isometry3d& T_map_camera);
+                                      const Eigen::Isometry3d& T_map_camera,
+                                      double exposure_gain = 1.0);
 
 /// How a rendering compares with the image the camera took.
 struct PhotometricScore {
@@ -79,9 +82,13 @@ struct HeldoutColourScores {
 };
 
 /// Scores `mesh` (with vertex_rgb) in the `heldout` views; the baseline colours come from
-/// `mapped` views. Throws DataError when the mesh has no colours.
+/// `mapped` views. `heldout_gains` (empty, or one per held-out view): the exposure each
+/// held-out camera is rendered at (the mapped cameras' around it, camera_exposure.hpp); the
+/// baseline's colours carry their camera's exposure as they are. Throws DataError when the mesh
+/// has no colours or the gains do not match the views.
 HeldoutColourScores score_heldout_images(const TriangleMesh& mesh,
                                          const std::vector<CameraView>& mapped,
-                                         const std::vector<CameraView>& heldout);
+                                         const std::vector<CameraView>& heldout,
+                                         const std::vector<double>& heldout_gains = {});
 
 }  // namespace shine

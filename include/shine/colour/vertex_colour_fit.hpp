@@ -25,6 +25,16 @@
 // on a later map 18.01 dB without the smoothness term, 18.03 dB with it (0.25, 8 steps: the
 // steps then converge instead of stopping early), baseline 16.51 dB.
 //
+// Exposure: a camera's auto-exposure makes one drive's images of the same surface brighter or
+// darker by several per cent (the real drive's gains 0.93-1.06). With `exposure` each view k gets
+// a gain g_k, its pixels saying g_k (A_k c) = y: the gains are the ratio of each view's pixel sum
+// to the sum of the colours rendered at them, normalised to geometric mean 1, and the colours are
+// solved again with each view's pixels divided by its gain (the same A^T A; the right-hand side
+// sum_k A_k^T y / g_k, kept per view and vertex: ~20 bytes for each vertex a view reached),
+// alternating exposure_rounds times. A camera the map never saw is then rendered at the gain of
+// the mapped images around it (camera_exposure.hpp): on the real drive's held-out images +0.04 to
+// +0.06 dB on every split (docs/colour.md).
+//
 // Pixels are skipped when their surface is farther than max_range_m, and when a pixel within
 // edge_margin_px shows a surface nearer by more than the occlusion tolerance: at a silhouette
 // the small pose and timing errors of real data put an occluder's colour onto the surface behind.
@@ -51,6 +61,11 @@ struct VertexColourFitConfig {
     /// Weight of the smoothness term per triangle edge, in the units of a pixel's squared
     /// residual (0: the pixels alone).
     double smoothness = 0.25;
+    /// Fit one exposure gain per view with the colours (a camera's auto-exposure): pixel y of
+    /// view k says g_k (b0 c0 + b1 c1 + b2 c2) = y; the gains' geometric mean is 1, so the
+    /// colours are at the views' mean exposure.
+    bool exposure = true;
+    int exposure_rounds = 2;  ///< alternations of gains and colours
 };
 
 /// The fitted colours and how much image supports each vertex (sum of its barycentric weights
@@ -59,6 +74,9 @@ struct VertexColours {
     std::vector<std::array<std::uint8_t, 3>> rgb;
     std::vector<float> support;
     std::size_t coloured = 0;  ///< vertices with support > 0
+    /// Each view's exposure gain, in the order the views were added (all 1 without the
+    /// exposure fit; 1 for a view no pixel of which was used).
+    std::vector<double> view_gains;
 };
 
 class VertexColourFit {
@@ -76,12 +94,26 @@ class VertexColourFit {
     std::size_t pixels_used() const { return pixels_; }
 
   private:
+    /// One view's pixels summed per vertex it reached: A_k^T y (rgb) and A_k^T 1.
+    struct ViewSums {
+        std::vector<std::uint32_t> vertex;
+        std::vector<std::array<float, 4>> sum;
+    };
+
+    struct Jacobi;
+    Jacobi prepare_jacobi() const;
+    /// The colours for right-hand side `rhs` (the file comment's solve).
+    std::vector<Eigen::Vector3d> solve_colours(const Jacobi& system,
+                                               const std::vector<Eigen::Vector3d>& rhs) const;
+
     const TriangleMesh& mesh_;
     VertexColourFitConfig config_;
     std::vector<std::array<float, 6>> blocks_;  ///< per triangle: A^T A, upper triangle row-major
     std::vector<Eigen::Vector3d> rhs_;          ///< per vertex: A^T y
     std::vector<double> support_;               ///< per vertex: A^T 1 (sum of b)
     std::size_t pixels_ = 0;
+    std::vector<ViewSums> views_;     ///< per view, with the exposure fit
+    std::vector<std::int32_t> slot_;  ///< scratch: a vertex's place in the view being added
 };
 
 }  // namespace shine

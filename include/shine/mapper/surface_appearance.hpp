@@ -7,10 +7,11 @@
 //   2. Colour (with images): every mapped scan's images, one at a time, are placed at the scan's
 //      final pose (the refined one in batch mode), the mesh is rasterised into each (MeshRaster)
 //      and the mesh's vertex colours are fitted to the pixels (vertex_colour_fit.hpp: least
-//      squares; occlusion by the map's own surface). Vertices no camera saw take the mean colour
-//      of their coloured neighbours, ring by ring (up to fill_rings); the rest, out of every
-//      camera's view, the mean colour of the seen ones (closer to what a camera would see there
-//      than black: +0.1 dB on the real drive's held-out images).
+//      squares; occlusion by the map's own surface; one exposure gain per image, the colours at
+//      the images' mean exposure, the gains in the stats' `exposure`). Vertices no camera saw take
+//      the mean colour of their coloured neighbours, ring by ring (up to fill_rings); the rest, out
+//      of every camera's view, the mean colour of the seen ones (closer to what a camera would see
+//      there than black: +0.1 dB on the real drive's held-out images).
 //   3. Reflectance (scans with intensity): the points' intensities accumulated in voxels
 //      (reflectance_voxels.hpp; batch mapping does it as it loads the scans, else every mapped
 //      scan is read again and deskewed as for mapping) and read at the vertices.
@@ -25,6 +26,7 @@
 #include <filesystem>
 #include <optional>
 
+#include "shine/colour/camera_exposure.hpp"
 #include "shine/colour/reflectance_voxels.hpp"
 #include "shine/colour/vertex_colour_fit.hpp"
 #include "shine/io/camera_rig.hpp"
@@ -52,6 +54,7 @@ struct SurfaceAppearanceStats {
     std::size_t intensity_points = 0;    ///< scan points whose intensity was fused
     std::size_t intensity_vertices = 0;  ///< vertices with a reflectance
     std::size_t intensity_voxels = 0;    ///< voxels of the intensity grid
+    ExposureTrack exposure;              ///< the fused images' exposure gains
     double seconds = 0.0;
 };
 
