@@ -1,5 +1,6 @@
 #include "map_appearance.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "shine/colour/camera_view.hpp"
@@ -55,6 +56,16 @@ void add_map_appearance(const fs::path& out, const ScanSequence& mapped, const M
                       s.views, share(s.coloured_vertices, s.vertices),
                       share(s.filled_vertices, s.vertices));
         what += text;
+        if (!s.exposure.empty()) {
+            double low = s.exposure.gains().front().gain, high = low;
+            for (const ExposureGain& g : s.exposure.gains()) {
+                low = std::min(low, g.gain);
+                high = std::max(high, g.gain);
+            }
+            std::snprintf(text, sizeof(text), ", each image's exposure fitted (gains %.3f-%.3f)",
+                          low, high);
+            what += text;
+        }
     }
     if (s.intensity) {
         char text[128];
