@@ -22,7 +22,7 @@ seconds="${1:-30}"
 [ $# -gt 0 ] && shift
 all_targets=(fuzz_kitti_bin fuzz_poses fuzz_calib fuzz_tum fuzz_ply fuzz_pcd fuzz_point_cloud2
              fuzz_rosbag1 fuzz_mcap fuzz_rosbag2_sqlite fuzz_config_yaml fuzz_vdb fuzz_checkpoint
-             fuzz_mover_tracks fuzz_camera_calibration fuzz_png fuzz_run_stats)
+             fuzz_mover_tracks fuzz_camera_calibration fuzz_png fuzz_run_stats fuzz_exposure_record)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
 jobs="${SHINE_BUILD_JOBS:-$(nproc)}"
