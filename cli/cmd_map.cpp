@@ -889,6 +889,7 @@ int run_map(const MapOptions& given_options) {
     }
     // Colour and reflectance, at the poses the map was made at.
     nlohmann::json appearance_json;
+    ExposureTrack exposure;  // the images' gains, for the held-out images below
     {
         ScanSequence mapped_final = sequence;
         if (batch_map && !batch_map->refinement.empty()) {
@@ -904,8 +905,8 @@ int run_map(const MapOptions& given_options) {
             batch_map && batch_map->reflectance ? &*batch_map->reflectance : nullptr;
         WrittenSurface* written =
             batch_map && batch_map->products.written ? &*batch_map->products.written : nullptr;
-        add_map_appearance(out, mapped_final, config, cameras, reflectance, written,
-                           appearance_json);
+        exposure = add_map_appearance(out, mapped_final, config, cameras, reflectance, written,
+                                      appearance_json);
         if (written) written->level_set.reset();  // only the mesh is read again
     }
     const MapProducts& products = incremental ? incremental_map->products : batch_map->products;
@@ -1082,7 +1083,7 @@ int run_map(const MapOptions& given_options) {
     }
     if (appearance_json.contains("appearance")) {
         json["appearance"] = appearance_json["appearance"];
-        score_heldout_colours(out, scored, split, cameras, json);
+        score_heldout_colours(out, scored, split, cameras, exposure, json);
     }
     json["seconds"]["total"] = seconds_since(start_total);
     json["peak_rss_bytes"] = peak_rss_bytes();

@@ -219,7 +219,7 @@ void render_calibrated_frame(const RenderOptions& opt, const FrameSequence& seq,
         }
     }
     CalibratedCameraRendering r =
-        render_calibrated_camera(mesh, camera, T_map_camera, 0.3, exposure_gain);
+        render_calibrated_camera(mesh, camera, T_map_camera, exposure_gain);
     std::printf("camera %s (%s layout, %d x %d, fx %.1f) of %s at frame %d's pose\n",
                 camera.name.c_str(), rig.layout.c_str(), camera.width, camera.height, camera.fx,
                 scan_path.filename().c_str(), opt.frame);

@@ -24,12 +24,13 @@ std::optional<CameraRig> find_sequence_cameras(const ScanSequence& selected, boo
     return rig;
 }
 
-void add_map_appearance(const fs::path& out, const ScanSequence& mapped, const MapperConfig& config,
-                        const std::optional<CameraRig>& rig, const ReflectanceVoxels* reflectance,
-                        WrittenSurface* written, nlohmann::json& json) {
+ExposureTrack add_map_appearance(const fs::path& out, const ScanSequence& mapped,
+                                 const MapperConfig& config, const std::optional<CameraRig>& rig,
+                                 const ReflectanceVoxels* reflectance, WrittenSurface* written,
+                                 nlohmann::json& json) {
     const SurfaceAppearanceStats s =
         add_surface_appearance(out, mapped, config, rig, {}, reflectance, written);
-    if (!s.colour && !s.intensity) return;
+    if (!s.colour && !s.intensity) return s.exposure;
     const auto share = [](std::size_t part, std::size_t whole) {
         return whole ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;
     };
@@ -57,13 +58,11 @@ void add_map_appearance(const fs::path& out, const ScanSequence& mapped, const M
                       share(s.filled_vertices, s.vertices));
         what += text;
         if (!s.exposure.empty()) {
-            double low = s.exposure.gains().front().gain, high = low;
-            for (const ExposureGain& g : s.exposure.gains()) {
-                low = std::min(low, g.gain);
-                high = std::max(high, g.gain);
-            }
+            const auto [low, high] = std::minmax_element(
+                s.exposure.gains().begin(), s.exposure.gains().end(),
+                [](const ExposureGain& a, const ExposureGain& b) { return a.gain < b.gain; });
             std::snprintf(text, sizeof(text), ", each image's exposure fitted (gains %.3f-%.3f)",
-                          low, high);
+                          low->gain, high->gain);
             what += text;
         }
     }
@@ -75,11 +74,12 @@ void add_map_appearance(const fs::path& out, const ScanSequence& mapped, const M
         what += text;
     }
     std::printf("%s, in %.1f s (mesh.ply and surface.vdb)\n", what.c_str(), s.seconds);
+    return s.exposure;
 }
 
 void score_heldout_colours(const fs::path& out, const ScanSequence& scored,
                            const HoldoutSplit& split, const std::optional<CameraRig>& rig,
-                           nlohmann::json& json) {
+                           const ExposureTrack& exposure, nlohmann::json& json) {
     if (!rig || split.heldout.empty()) return;
     const TriangleMesh mesh = read_ply_mesh(out / "mesh.ply");
     if (mesh.vertex_rgb.empty()) return;
@@ -95,10 +95,9 @@ void score_heldout_colours(const fs::path& out, const ScanSequence& scored,
     const std::vector<CameraView> heldout = views_of(split.heldout);
     if (heldout.empty()) return;
     // Each held-out camera at the exposure of the mapped images around it.
-    const ExposureTrack track = read_exposure_record(json.dump(), (out / "stats.json").string());
     std::vector<double> gains;
     for (const CameraView& view : heldout) {
-        gains.push_back(track.gain_at(view.camera.name, scored.frame_number(view.scan_index)));
+        gains.push_back(exposure.gain_at(view.camera.name, scored.frame_number(view.scan_index)));
     }
     const HeldoutColourScores scores =
         score_heldout_images(mesh, views_of(split.mapped), heldout, gains);

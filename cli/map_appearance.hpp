@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "cli_common.hpp"
+#include "shine/colour/camera_exposure.hpp"
 #include "shine/colour/reflectance_voxels.hpp"
 #include "shine/io/camera_rig.hpp"
 #include "shine/io/scan_sequence.hpp"
@@ -22,17 +23,19 @@ std::optional<CameraRig> find_sequence_cameras(const ScanSequence& selected, boo
 /// Adds colour and reflectance to OUT's mesh.ply and surface.vdb from the scans of `mapped` (at
 /// the poses the map was made at; `reflectance`: their intensities if mapping accumulated them);
 /// prints a line and sets json["appearance"] when it did. `written`: the products' level set and
-/// mesh in memory (taken over), or null to read them from OUT.
-void add_map_appearance(const std::filesystem::path& out, const ScanSequence& mapped,
-                        const MapperConfig& config, const std::optional<CameraRig>& rig,
-                        const ReflectanceVoxels* reflectance, WrittenSurface* written,
-                        nlohmann::json& json);
+/// mesh in memory (taken over), or null to read them from OUT. Returns the images' exposure gains
+/// (empty without images).
+ExposureTrack add_map_appearance(const std::filesystem::path& out, const ScanSequence& mapped,
+                                 const MapperConfig& config, const std::optional<CameraRig>& rig,
+                                 const ReflectanceVoxels* reflectance, WrittenSurface* written,
+                                 nlohmann::json& json);
 
 /// With cameras and held-out scans: OUT/mesh.ply's colours rendered into the held-out scans'
-/// cameras (at `scored`'s poses) and compared with their images, beside the naive baseline;
-/// prints the pooled PSNRs and sets json["heldout_colour"].
+/// cameras (at `scored`'s poses, each at the exposure `exposure` gives its frame) and compared
+/// with their images, beside the naive baseline; prints the pooled PSNRs and sets
+/// json["heldout_colour"].
 void score_heldout_colours(const std::filesystem::path& out, const ScanSequence& scored,
                            const HoldoutSplit& split, const std::optional<CameraRig>& rig,
-                           nlohmann::json& json);
+                           const ExposureTrack& exposure, nlohmann::json& json);
 
 }  // namespace shine::cli

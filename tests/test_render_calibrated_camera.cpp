@@ -136,7 +136,7 @@ TEST(CalibratedCamera, PictureIsTheColourYardsticksRendering) {
     // At another exposure both scale alike (clamped at 255), and the picture changes.
     for (const double gain : {0.8, 1.3}) {
         const CalibratedCameraRendering scaled =
-            render_calibrated_camera(mesh, camera, T_map_camera, 0.3, gain);
+            render_calibrated_camera(mesh, camera, T_map_camera, gain);
         EXPECT_EQ(scaled.picture.image.pixels(),
                   render_vertex_colours(mesh, mesh.vertex_rgb, camera, T_map_camera, gain)
                       .image.pixels());

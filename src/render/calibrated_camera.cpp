@@ -42,7 +42,7 @@ double srgb_to_linear(double encoded) {
 CalibratedCameraRendering render_calibrated_camera(const TriangleMesh& mesh,
                                                    const RigCamera& camera,
                                                    const Eigen::Isometry3d& T_map_camera,
-                                                   double near_m, double exposure_gain) {
+                                                   double exposure_gain, double near_m) {
     using namespace calibrated_camera_internal;
     if (mesh.triangles.empty()) {
         throw DataError("the map's mesh has no triangles: nothing to render");

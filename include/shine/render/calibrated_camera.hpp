@@ -51,15 +51,15 @@ struct CalibratedCameraRendering {
 
 /// Renders `mesh` (vertices in its map frame) through `camera` at `T_map_camera` (optical frame ->
 /// map frame: colour/camera_view.hpp's camera_pose_in_map). Layers and picture as in the file
-/// comment; triangles with a corner nearer than `near_m` are left out (MeshRaster). Vertex
-/// colours are scaled by `exposure_gain` (the camera's exposure against the colours', as
-/// render_vertex_colours scales them; the 8-bit value clamped at 255, the linear one at 1).
+/// comment. Vertex colours are scaled by `exposure_gain` (the camera's exposure against the
+/// colours', as render_vertex_colours scales them; the 8-bit value clamped at 255, the linear one
+/// at 1); triangles with a corner nearer than `near_m` are left out (MeshRaster).
 /// Parallel; the result does not depend on the thread count. Throws DataError for a mesh without
 /// triangles or with a vertex_rgb / vertex_intensity whose size is not the vertex count.
 CalibratedCameraRendering render_calibrated_camera(const TriangleMesh& mesh,
                                                    const RigCamera& camera,
                                                    const Eigen::Isometry3d& T_map_camera,
-                                                   double near_m = 0.3, double exposure_gain = 1.0);
+                                                   double exposure_gain = 1.0, double near_m = 0.3);
 
 /// sRGB-encoded value (0..1) to linear light (IEC 61966-2-1).
 double srgb_to_linear(double encoded);
