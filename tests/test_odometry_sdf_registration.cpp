@@ -6,6 +6,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -271,6 +272,39 @@ TEST(SdfRegistration, IterationBudgetExhaustedIsNotConverged) {
     EXPECT_FALSE(result.converged);
     EXPECT_TRUE(result.T_world_sensor.isApprox(initial, 0.0));
     EXPECT_FALSE(result.T_world_sensor_solved.isApprox(initial, 0.0));
+}
+
+TEST(SdfRegistration, AStepBelowTheThresholdsEndsTheSolveUnevaluatedWhenAsked) {
+    std::atomic<std::size_t> calls{0};
+    const PointwiseSdfField field([&](const Eigen::Vector3d& p, double& sdf, Eigen::Vector3d& g) {
+        ++calls;
+        return room_sdf(p, sdf, g);
+    });
+    const auto scan = to_sensor(room_surface_points(1), kTruePose);
+    const Eigen::Isometry3d initial = kTruePose * kPerturbation;
+    RegistrationResult results[2];
+    std::size_t evaluations[2];
+    for (int k = 0; k < 2; ++k) {
+        SdfRegistrationConfig config;
+        config.solver.try_converged_step = k == 0;
+        calls = 0;
+        results[k] = register_to_sdf(scan, initial, field, config);
+        evaluations[k] = calls;
+    }
+    ASSERT_EQ(results[0].status, RegistrationStatus::kConverged) << results[0].summary();
+    ASSERT_EQ(results[1].status, RegistrationStatus::kConverged) << results[1].summary();
+    // The same iterations up to the step below the thresholds, which is the one pass over the
+    // points fewer.
+    EXPECT_EQ(evaluations[0] - evaluations[1], scan.size());
+    EXPECT_EQ(results[0].iterations, results[1].iterations);
+    // Where it stopped is that step away from where the tried step went.
+    const RegistrationSolverConfig solver;
+    const auto [dt, dr] = pose_difference(results[1].T_world_sensor, results[0].T_world_sensor);
+    EXPECT_LT(dt, 2.0 * solver.converged_translation_m);
+    EXPECT_LT(dr, 2.0 * solver.converged_rotation_rad);
+    const auto [dt_true, dr_true] = pose_difference(results[1].T_world_sensor, kTruePose);
+    EXPECT_LT(dt_true, kTranslationTolM) << results[1].summary();
+    EXPECT_LT(dr_true, kRotationTolRad) << results[1].summary();
 }
 
 TEST(SdfRegistration, SameBitsForOneAndTwoThreads) {

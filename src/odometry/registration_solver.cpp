@@ -344,6 +344,8 @@ RegistrationResult solve(const std::vector<Eigen::Vector3f>& points_sensor,
                     step.template segment<3>(6 * block).norm() < config.converged_translation_m &&
                     step.template segment<3>(6 * block + 3).norm() < config.converged_rotation_rad;
         }
+        // Below the thresholds the step is no longer worth an evaluation of every point.
+        if (small && !config.try_converged_step) return finish(RegistrationStatus::kConverged);
         const Eigen::Isometry3d T_trial = T * se3_exp(step.template head<6>());
         Vector6d twist_trial = twist;
         if constexpr (N == 12) twist_trial += step.template tail<6>();

@@ -85,6 +85,10 @@ struct RegistrationSolverConfig {
     double initial_damping = 1e-4;          ///< lambda of Eq. (2) at the first iteration
     int min_valid_points = 20;              ///< fewer points with a residual: degenerate
     double max_condition_number = 1e4;      ///< of the range-scaled H: beyond it, degenerate
+    /// A step below the thresholds is still tried, and taken when it lowers the cost (one more
+    /// evaluation of every point). false: the solve ends where it is, without that evaluation;
+    /// the pose then differs from the tried step's by less than the thresholds.
+    bool try_converged_step = true;
     RobustKernel kernel;
 };
 
