@@ -389,8 +389,7 @@ MapLocalizer::Attempt MapLocalizer::track(const std::vector<Eigen::Vector3f>& po
                                           const Eigen::Isometry3d& start) const {
     Attempt attempt;
     attempt.pose = start;
-    // Each point's cells remembered from one iteration to the next (QueryCellMemory).
-    const NeuralSdfField neural_field(sdf_, QueryMask::kLevel0, /*remember_cells=*/true);
+    const NeuralSdfField neural_field(sdf_);
     const map_localizer_internal::TimedSdfField timed_field(neural_field,
                                                             stage_seconds_.sdf_queries);
     const map_localizer_internal::RecentSdfEvaluations field(timed_field);

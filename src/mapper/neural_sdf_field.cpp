@@ -14,8 +14,7 @@ void NeuralSdfField::evaluate(const std::vector<Eigen::Vector3d>& points_world,
     }
     std::vector<float> sdf_f;
     std::vector<Eigen::Vector3f> gradient_map;
-    query_sdf_and_gradient(sdf_, points_map, mask_, sdf_f, gradient_map, valid,
-                           remember_cells_ ? &memory_ : nullptr);
+    query_sdf_and_gradient(sdf_, points_map, mask_, sdf_f, gradient_map, valid, &memory_);
     sdf_m.resize(points_world.size());
     gradient_world.resize(points_world.size());
     for (std::size_t i = 0; i < points_world.size(); ++i) {

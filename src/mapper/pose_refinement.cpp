@@ -141,9 +141,7 @@ std::vector<Eigen::Isometry3d> refine_scan_poses(const NeuralSdf& sdf, const Ray
                         std::to_string(rays.num_scans()) + " scans");
     }
     const Eigen::Vector3d origin = sdf.origin_world_m;
-    // Each point's cells remembered from one evaluation to the next (QueryCellMemory): the
-    // same bits, fewer octree look-ups. One thread at a time evaluates it: the scans go in turn.
-    const NeuralSdfField field(sdf, QueryMask::kLevel0, /*remember_cells=*/true);
+    const NeuralSdfField field(sdf);
     SdfRegistrationConfig registration;
     registration.solver.max_iterations = config.max_iterations;
     registration.solver.kernel.type = RobustKernelType::kGemanMcClure;

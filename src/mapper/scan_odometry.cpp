@@ -307,9 +307,7 @@ const OdometryRecord& ScanOdometry::finish(PreparedScan prepared, const NeuralSd
                 scales.push_back(config_.sdf_coarse_kernel_scale_m);
             }
             scales.push_back(config_.sdf_kernel_scale_m);
-            // Each point's cells remembered from one iteration to the next (QueryCellMemory):
-            // the same bits, and the octree look-ups of points that stayed in their cells saved.
-            const NeuralSdfField field(map, QueryMask::kLevel0, /*remember_cells=*/true);
+            const NeuralSdfField field(map);
             Eigen::Isometry3d from = prepared.sdf_start;
             for (const double scale_m : scales) {
                 SdfRegistrationConfig sdf_config;

@@ -18,14 +18,12 @@ namespace shine {
 /// A NeuralSdf seen as an SdfField in the world frame.
 class NeuralSdfField final : public SdfField {
   public:
-    /// Keeps a reference: `sdf` must outlive the field and not change while it is evaluated.
+    /// Keeps a reference: `sdf` must outlive the field and not change while the field lives.
+    /// Each point's cells are kept for the next evaluation of as many points (QueryCellMemory:
+    /// the same results, faster when the points barely moved, as between a registration's
+    /// iterations), so the field is evaluated by one thread at a time, as SdfField asks.
     explicit NeuralSdfField(const NeuralSdf& sdf, QueryMask mask = QueryMask::kLevel0)
         : sdf_(sdf), mask_(mask) {}
-    /// With `remember_cells`, each point's cells are kept for the next evaluation of as many
-    /// points (QueryCellMemory: the same results, faster when the points barely moved, as between
-    /// a registration's iterations). Such a field must then be evaluated by one thread at a time.
-    NeuralSdfField(const NeuralSdf& sdf, QueryMask mask, bool remember_cells)
-        : sdf_(sdf), mask_(mask), remember_cells_(remember_cells) {}
 
     void evaluate(const std::vector<Eigen::Vector3d>& points_world, std::vector<double>& sdf_m,
                   std::vector<Eigen::Vector3d>& gradient_world,
@@ -34,7 +32,6 @@ class NeuralSdfField final : public SdfField {
   private:
     const NeuralSdf& sdf_;
     QueryMask mask_;
-    bool remember_cells_ = false;
     mutable QueryCellMemory memory_;
 };
 
