@@ -236,6 +236,8 @@ nlohmann::json keyframes_to_json(const KeyframePolicy& policy,
         {"min_translation_m", c.min_translation_m},
         {"min_rotation_deg", c.min_rotation_deg},
         {"max_interval_scans", c.max_interval_scans},
+        {"keyframe_takes_deferred_steps", c.keyframe_takes_deferred_steps},
+        {"deferred_steps_taken", mapped.deferred_steps_taken},
         {"min_coverage", c.min_coverage},
         {"max_ms_per_scan", c.max_ms_per_scan},
         {"trained", n.trained},
@@ -1020,12 +1022,13 @@ int run_map(const MapOptions& given_options) {
             std::printf(
                 "keyframes: %d scans trained when they came (median %.3f s/scan), %d deferred "
                 "(median %.3f s/scan; %d by the budget, %d while the background training was "
-                "busy), %d caught up after the last scan in %.1f s, %d skipped\n",
+                "busy; the keyframes took the steps of %d), %d caught up after the last scan in "
+                "%.1f s, %d skipped\n",
                 k["trained"].get<int>(), k["median_seconds_per_trained_scan"].get<double>(),
                 k["deferred"].get<int>(), k["median_seconds_per_deferred_scan"].get<double>(),
                 k["deferred_over_budget"].get<int>(), k["deferred_while_busy"].get<int>(),
-                k["caught_up"].get<int>(), k["catch_up_seconds"].get<double>(),
-                k["skipped"].get<int>());
+                k["deferred_steps_taken"].get<int>(), k["caught_up"].get<int>(),
+                k["catch_up_seconds"].get<double>(), k["skipped"].get<int>());
         }
     }
     std::printf("wrote %s, %s, %s (%zu triangles)\n", (out / "map.vdb").c_str(),

@@ -41,11 +41,12 @@ fs::path write_config(const std::string& name, const std::string& yaml) {
     return path;
 }
 
-CliResult map(const fs::path& data, const fs::path& out, const fs::path& config) {
+CliResult map(const fs::path& data, const fs::path& out, const fs::path& config,
+              const std::string& extra_args = "") {
     fs::remove_all(out);
     return run("map '" + data.string() + "' -o '" + out.string() +
                "' --mode incremental --poses estimate --threads 2 -q --no-eval -c '" +
-               config.string() + "'");
+               config.string() + "' " + extra_args);
 }
 
 /// The mean of the scans' wall_seconds from `first` on (stats.json odometry.scans).
@@ -110,6 +111,39 @@ TEST(KeyframesCli, DeferredScansAreCaughtUpCountedAndTracked) {
     EXPECT_LT(
         shine::absolute_trajectory_error(estimate, truth, shine::TrajectoryAlignment::kSe3).rmse_m,
         0.005);
+}
+
+TEST(KeyframesCli, KeyframesTakeTheStepsOfTheScansDeferredBeforeThem) {
+    // Scans 0-8 of a turning street: keyframes 0-3 and 6 (the map covers too little of it), 4,
+    // 5, 7 and 8 deferred as redundant. Keyframe 6 trains the steps of three scans (itself, 4
+    // and 5); no keyframe comes after 7 and 8. A backlog of 2 drops 4 and 5 and keeps 7 and 8,
+    // which the consolidation integrates and takes the steps of.
+    const fs::path data = street(11);
+    const fs::path out = test_dir() / "deferred_steps";
+    const CliResult r = map(data, out,
+                            write_config("deferred_steps",
+                                         "incremental:\n  consolidation_steps: 20\nkeyframes:\n"
+                                         "  max_deferred_scans: 2\n"),
+                            "--last-frame 8");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json stats = read_json(out / "stats.json");
+    const nlohmann::json& k = stats.at("keyframes");
+    std::vector<std::string> reasons;
+    for (const auto& s : stats.at("odometry").at("scans"))
+        reasons.push_back(s.at("keyframe_reason").get<std::string>());
+    ASSERT_EQ(reasons,
+              (std::vector<std::string>{"first", "warm-up", "warm-up", "warm-up", "redundant",
+                                        "redundant", "coverage", "redundant", "redundant"}));
+    EXPECT_TRUE(k.at("keyframe_takes_deferred_steps").get<bool>());
+    EXPECT_EQ(k.at("deferred").get<int>(), 4);
+    EXPECT_EQ(k.at("skipped").get<int>(), 2);
+    EXPECT_EQ(k.at("caught_up").get<int>(), 2);
+    EXPECT_EQ(k.at("deferred_steps_taken").get<int>(), 2);
+    const int per_scan = stats.at("incremental").at("iterations_per_frame").get<int>();
+    const int consolidation = stats.at("incremental").at("consolidation").at("steps").get<int>();
+    EXPECT_EQ(consolidation, 20 + 2 * per_scan);
+    EXPECT_EQ(stats.at("iterations").get<int>() - consolidation, (4 + 3) * per_scan);
+    EXPECT_NE(r.output.find("the keyframes took the steps of 2"), std::string::npos) << r.output;
 }
 
 TEST(KeyframesCli, BudgetIsKeptWhenTrainingIsSlow) {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <functional>
 #include <random>
+#include <stdexcept>
 
 #include "shine/core/error.hpp"
 #include "shine/mapper/incremental_mapper.hpp"
@@ -581,6 +582,19 @@ TEST(IncrementalMapper, ConsolidationTrainsTheKeptScansTogetherAndMapsGoOnAfterI
     EXPECT_NO_THROW(mapper.add_scan(ground_scan_at(1.5)));
     EXPECT_EQ(mapper.frames().size(), 4u);
     EXPECT_THROW(mapper.consolidate(-1), ConfigError);
+}
+
+TEST(IncrementalMapper, AScanTakesTheStepsOfSeveralUnderOneDecay) {
+    // A keyframe takes the steps of the scans deferred before it (add_scan's step_scans).
+    IncrementalMapper one(consolidation_test_config());
+    IncrementalMapper three(consolidation_test_config());
+    one.add_scan(ground_scan_at(0.0));
+    three.add_scan(ground_scan_at(0.0), 3);
+    EXPECT_EQ(one.stats().iterations, 2u);
+    EXPECT_EQ(three.stats().iterations, 6u);
+    EXPECT_NE(three.sdf().octree.features().to_floats(), one.sdf().octree.features().to_floats());
+    EXPECT_THROW(three.add_scan(ground_scan_at(0.5), 0), std::invalid_argument);
+    EXPECT_EQ(three.frames().size(), 1u);
 }
 
 TEST(IncrementalMapper, ConsolidationReachesEveryKeptScanAndNoneWithZeroSteps) {

@@ -21,14 +21,14 @@ BackgroundTraining::~BackgroundTraining() {
     thread_.join();
 }
 
-void BackgroundTraining::submit(std::size_t index, Scan scan,
+void BackgroundTraining::submit(std::size_t index, Scan scan, int step_scans,
                                 std::chrono::milliseconds extra_delay) {
     {
         std::lock_guard<std::mutex> lock(mutex_);
         if (busy_.load(std::memory_order_acquire)) {
             throw std::logic_error("BackgroundTraining::submit while a scan trains");
         }
-        job_ = Job{index, std::move(scan), extra_delay};
+        job_ = Job{index, std::move(scan), step_scans, extra_delay};
         busy_.store(true, std::memory_order_release);
     }
     wake_.notify_all();
@@ -53,7 +53,7 @@ void BackgroundTraining::run() {
         std::shared_ptr<const NeuralSdf> snapshot;
         try {
             arena.execute([&] {
-                done.stats = mapper_.add_scan(job.scan);
+                done.stats = mapper_.add_scan(job.scan, job.step_scans);
                 if (job.extra_delay.count() > 0) std::this_thread::sleep_for(job.extra_delay);
                 snapshot = std::make_shared<NeuralSdf>(mapper_.sdf().clone());
             });

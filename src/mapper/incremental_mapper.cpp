@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 #include <type_traits>
 #include <utility>
 
@@ -800,7 +801,8 @@ const ConsolidationStats& IncrementalMapper::consolidate(
     return consolidation_;
 }
 
-const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
+const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan, int step_scans) {
+    if (step_scans < 1) throw std::invalid_argument("add_scan: step_scans must be at least 1");
     const auto frame_start = std::chrono::steady_clock::now();
     IncrementalFrameStats frame;
     preprocess_and_allocate(scan, frame);
@@ -823,7 +825,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
     const ImportanceWeights* regularizer = importance_.enabled() ? &importance_ : nullptr;
     if (ray_end > ray_begin) {
         TrainStepStats last;
-        const int iterations = config_.incremental.iterations_per_frame;
+        const int iterations = config_.incremental.iterations_per_frame * step_scans;
         const float lr0 = config_.trainer.feature_adam.learning_rate;
         // Each scan's training ends with small steps (cosine decay to final_learning_rate_ratio,
         // as batch mode over its whole run), so that the anchors theta* are converged values.
@@ -837,7 +839,7 @@ const IncrementalFrameStats& IncrementalMapper::add_scan(const Scan& scan) {
         frame.regularization = last.regularization;
         stats_.final_bce = last.bce;
         stats_.final_eikonal = last.eikonal;
-        stats_.iterations += static_cast<std::size_t>(config_.incremental.iterations_per_frame);
+        stats_.iterations += static_cast<std::size_t>(iterations);
     }
     frame.train_seconds = seconds_since(start);
 

@@ -83,6 +83,22 @@ std::optional<SweepPrior> sweep_prior(const ScanSequence& sequence, std::size_t 
     return sweep;
 }
 
+/// A keyframe's training: the steps of how many scans (itself and, with
+/// keyframes.keyframe_takes_deferred_steps, the scans deferred as redundant since the keyframe
+/// before it); counts the deferred scans whose steps it took.
+int keyframe_step_scans(const KeyframeConfig& config, IncrementalSequenceMap& result) {
+    const std::size_t owed = config.keyframe_takes_deferred_steps ? result.steps_owed : 0;
+    result.steps_owed = 0;
+    result.deferred_steps_taken += owed;
+    return 1 + static_cast<int>(owed);
+}
+
+/// A scan deferred by `choice`: a redundant one's steps are owed to the next keyframe (the scans
+/// deferred by the budget or while the training was busy are not: the map could not take them).
+void owe_steps(const KeyframeChoice& choice, IncrementalSequenceMap& result) {
+    if (choice.reason == KeyframeReason::kRedundant) ++result.steps_owed;
+}
+
 // Incremental checkpoints: the frames done, the mapper's state, the stage profile so far and the
 // progress meshes written so far.
 void write_incremental_checkpoint(const RunControl& control, const IncrementalSequenceMap& result,
@@ -165,8 +181,12 @@ std::size_t resume_incremental(const RunControl& control, const ScanSequence& se
             }
             if (result.keyframes && !result.keyframe_choices[i].train) {
                 // Deferred: not in the map yet, but in the odometry's ICP reference, as measured.
+                owe_steps(result.keyframe_choices[i], result);
                 result.odometry->remember_scan(scan);
                 continue;
+            }
+            if (result.keyframes) {
+                keyframe_step_scans(result.keyframes->config(), result);
             }
             if (deskew) {
                 deskew_for_mapping(scan, sequence, i, *deskew, result.odometry.get(),
@@ -462,6 +482,7 @@ IncrementalSequenceMap map_sequence_incremental(
                 // Registered only: its points join the ICP reference, and the next scan is
                 // prepared; the scan itself is integrated after the last one.
                 result.deferred.push_back(i);
+                owe_steps(choice, result);
                 if (result.deferred.size() >
                     static_cast<std::size_t>(config.incremental.keyframes.max_deferred_scans)) {
                     result.deferred.pop_front();
@@ -479,7 +500,8 @@ IncrementalSequenceMap map_sequence_incremental(
             } else if (trainer) {
                 // Trained in the background; this thread goes on with the next scan.
                 result.odometry->remember_scan(scan);
-                trainer->submit(i, std::move(scan), training_delay);
+                const int step_scans = keyframe_step_scans(config.incremental.keyframes, result);
+                trainer->submit(i, std::move(scan), step_scans, training_delay);
                 result.mapper_scans.push_back(i);
                 prepare_ahead(i + 1);
                 char detail[128];
@@ -493,14 +515,17 @@ IncrementalSequenceMap map_sequence_incremental(
                 // registration to the map (finish) waits for both.
                 const IncrementalFrameStats* mapped = nullptr;
                 result.mapper_scans.push_back(i);
+                const int step_scans =
+                    result.keyframes ? keyframe_step_scans(config.incremental.keyframes, result)
+                                     : 1;
                 if (result.odometry) {
-                    tbb::parallel_invoke([&] { mapped = &mapper.add_scan(scan); },
+                    tbb::parallel_invoke([&] { mapped = &mapper.add_scan(scan, step_scans); },
                                          [&] {
                                              result.odometry->remember_scan(scan);
                                              prepare_ahead(i + 1);
                                          });
                 } else {
-                    mapped = &mapper.add_scan(scan);
+                    mapped = &mapper.add_scan(scan, step_scans);
                 }
                 if (training_delay.count() > 0) std::this_thread::sleep_for(training_delay);
                 const IncrementalFrameStats& frame = *mapped;
@@ -586,8 +611,10 @@ IncrementalSequenceMap map_sequence_incremental(
     int consolidation_steps = mapper.config().incremental.consolidation_steps;
     if (!result.deferred.empty()) {
         if (consolidation_steps > 0) {
-            // The steps the deferred scans did not take when they came are taken here, so that
-            // the map gets the training of a run that trains every scan.
+            // The steps the deferred scans did not take when they came are taken here, over
+            // every kept scan, so that the final map gets at least the training of a run that
+            // trains every scan (with keyframe_takes_deferred_steps the keyframes took them
+            // once more, for the online map that registration reads).
             consolidation_steps += static_cast<int>(result.deferred.size()) *
                                    mapper.config().incremental.iterations_per_frame;
             catch_up_deferred(sequence, config, deskew, result, progress_tag);

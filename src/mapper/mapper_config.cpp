@@ -252,6 +252,8 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
           {"min_translation_m", number(c.incremental.keyframes.min_translation_m, 1e-6, 1e6)},
           {"min_rotation_deg", number(c.incremental.keyframes.min_rotation_deg, 1e-6, 360.0)},
           {"max_interval_scans", number(c.incremental.keyframes.max_interval_scans, 1, 1000000)},
+          {"keyframe_takes_deferred_steps",
+           boolean(c.incremental.keyframes.keyframe_takes_deferred_steps)},
           {"min_coverage", number(c.incremental.keyframes.min_coverage, 0.0, 1.0)},
           {"forced_coverage", number(c.incremental.keyframes.forced_coverage, 0.0, 1.0)},
           {"max_ms_per_scan", number(c.incremental.keyframes.max_ms_per_scan, 0.0, 1e9)},

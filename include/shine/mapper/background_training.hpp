@@ -45,9 +45,11 @@ class BackgroundTraining {
 
     /// Whether a scan is training (submit() would have to wait).
     bool busy() const { return busy_.load(std::memory_order_acquire); }
-    /// Starts integrating `scan` (at its T_world_sensor) into the map. Throws std::logic_error
-    /// while busy(). `extra_delay` lengthens the training (a test hook, see incremental_sequence).
-    void submit(std::size_t index, Scan scan, std::chrono::milliseconds extra_delay = {});
+    /// Starts integrating `scan` (at its T_world_sensor) into the map, with the steps of
+    /// `step_scans` scans (IncrementalMapper::add_scan). Throws std::logic_error while busy().
+    /// `extra_delay` lengthens the training (a test hook, see incremental_sequence).
+    void submit(std::size_t index, Scan scan, int step_scans = 1,
+                std::chrono::milliseconds extra_delay = {});
     /// Waits until no scan trains; rethrows what the last one threw.
     void wait();
     /// Waits at most `seconds` for the scan in training; returns !busy() (errors wait for
@@ -62,6 +64,7 @@ class BackgroundTraining {
     struct Job {
         std::size_t index = 0;
         Scan scan;
+        int step_scans = 1;
         std::chrono::milliseconds extra_delay{0};
     };
     /// The training thread: one for the object's life (per-thread state of TBB and the trainer

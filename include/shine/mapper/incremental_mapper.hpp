@@ -161,8 +161,10 @@ class IncrementalMapper {
     bool keeps_scan_images() const;
 
     /// Integrates one scan (steps 1-5 of the file comment). Throws DataError naming the scan's
-    /// source for invalid points (per preprocess config).
-    const IncrementalFrameStats& add_scan(const Scan& scan);
+    /// source for invalid points (per preprocess config). `step_scans`: step 4 runs the steps of
+    /// that many scans (incremental.iterations_per_frame each, one cosine decay over them all):
+    /// a keyframe takes the steps of the scans deferred since the one before it.
+    const IncrementalFrameStats& add_scan(const Scan& scan, int step_scans = 1);
 
     /// Resuming a checkpoint: steps 1-2 only (preprocess, grow the map, keep the scan in the
     /// window; with replay, its normals as well), which rebuild the map's structure and window as

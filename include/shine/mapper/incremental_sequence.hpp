@@ -59,6 +59,11 @@ struct IncrementalSequenceMap {
     std::vector<KeyframeChoice> keyframe_choices;
     /// Deferred scans waiting for the catch-up (empty after the run).
     std::deque<std::size_t> deferred;
+    /// keyframes.keyframe_takes_deferred_steps: the scans deferred as redundant since the last
+    /// keyframe (whose steps the next keyframe takes), and the deferred scans whose steps the
+    /// keyframes took.
+    std::size_t steps_owed = 0;
+    std::size_t deferred_steps_taken = 0;
     double catch_up_seconds = 0.0;  ///< integrating the deferred scans after the last one
     /// A continued map: the old drive's viewpoints cast (MapToContinue) and how long it took.
     std::size_t old_viewpoints = 0;
