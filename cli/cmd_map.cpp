@@ -301,6 +301,7 @@ void add_odometry_stats(const IncrementalSequenceMap& mapped, nlohmann::json& js
                         {"voxel_size_m", c.voxel_size_m},
                         {"icp_warmup_scans", c.icp_warmup_scans},
                         {"sdf_kernel_scale_m", c.sdf_kernel_scale_m},
+                        {"sdf_min_incidence_cosine", c.sdf_min_incidence_cosine},
                         {"icp_kernel_scale_m", c.icp_kernel_scale_m},
                         {"estimate_sweep", c.estimate_sweep},
                         {"sweep_prior_centre", c.sweep_prior_from_poses ? "poses" : "prediction"},

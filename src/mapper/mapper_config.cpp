@@ -277,6 +277,7 @@ std::vector<std::pair<std::string, Section>> schema(MapperConfig& c) {
            number(c.odometry.icp_coarse_correspondence_m, 0.0, 1000.0)},
           {"sdf_kernel_scale_m", number(c.odometry.sdf_kernel_scale_m, 1e-5, 100.0)},
           {"sdf_coarse_kernel_scale_m", number(c.odometry.sdf_coarse_kernel_scale_m, 0.0, 100.0)},
+          {"sdf_min_incidence_cosine", number(c.odometry.sdf_min_incidence_cosine, 0.0, 1.0)},
           {"max_condition_number", number(c.odometry.max_condition_number, 1.0, 1e30)},
           {"min_scan_points", number(c.odometry.min_scan_points, 0, 100000000)},
           {"estimate_sweep", boolean(c.odometry.estimate_sweep)},

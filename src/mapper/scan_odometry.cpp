@@ -312,6 +312,7 @@ const OdometryRecord& ScanOdometry::finish(PreparedScan prepared, const NeuralSd
             for (const double scale_m : scales) {
                 SdfRegistrationConfig sdf_config;
                 sdf_config.solver = solver_config(config_, scale_m);
+                sdf_config.solver.min_incidence_cosine = config_.sdf_min_incidence_cosine;
                 result = prepared.continuous
                              ? register_to_sdf(prepared.measured, from, field, sdf_config,
                                                &prepared.sweep)
@@ -333,7 +334,8 @@ const OdometryRecord& ScanOdometry::finish(PreparedScan prepared, const NeuralSd
         record.initial_cost = result.initial_cost;
         record.final_cost = result.final_cost;
         record.condition_number = result.condition_number;
-        record.valid_points = result.num_valid_points;
+        // The map's coverage (keyframe_policy.hpp): oblique points have a value in the map too.
+        record.valid_points = result.num_valid_points + result.num_oblique_points;
         if (record.accepted) {
             estimate = result.T_world_sensor;
             record.source = prepared.icp ? PoseSource::kIcp : PoseSource::kSdf;

@@ -46,6 +46,10 @@ void check_config(const RegistrationSolverConfig& config) {
     if (!(config.initial_damping >= 0.0)) {
         throw ConfigError("registration initial_damping must be >= 0");
     }
+    if (!(config.min_incidence_cosine >= 0.0 && config.min_incidence_cosine <= 1.0)) {
+        throw ConfigError("registration min_incidence_cosine must be in [0, 1] (got " +
+                          std::to_string(config.min_incidence_cosine) + ")");
+    }
 }
 
 }  // namespace
@@ -141,7 +145,8 @@ template <int N>
 NormalEquationsOf<N> build_equations(const std::vector<Eigen::Vector3f>& points_sensor,
                                      const Eigen::Isometry3d& T_world_sensor,
                                      const PointResiduals& residuals, const RobustKernel& kernel,
-                                     const SweepModel* sweep, const Vector6d& sweep_twist) {
+                                     double min_incidence_cosine, const SweepModel* sweep,
+                                     const Vector6d& sweep_twist) {
     const std::size_t n = points_sensor.size();
     NormalEquationsOf<N> total;
     if (n == 0) return total;
@@ -178,6 +183,12 @@ NormalEquationsOf<N> build_equations(const std::vector<Eigen::Vector3f>& points_
         for (std::size_t i = c * kChunkPoints; i < end; ++i) {
             if (!valid[i] || !std::isfinite(r[i]) || !g[i].allFinite()) continue;
             const Eigen::Vector3d q = point_ref(i);
+            // The ray's direction in the world is R q; |cos| of its angle to the gradient.
+            if (min_incidence_cosine > 0.0 &&
+                !(std::abs(g[i].dot(R * q)) >= min_incidence_cosine * g[i].norm() * q.norm())) {
+                ++eq.num_oblique;
+                continue;
+            }
             Eigen::Matrix<double, 1, N> J;
             J.template head<6>() = point_residual_jacobian(q, R, g[i]);
             if constexpr (N == 12) {
@@ -197,6 +208,7 @@ NormalEquationsOf<N> build_equations(const std::vector<Eigen::Vector3f>& points_
         total.cost += eq.cost;
         total.sum_range_sq_m2 += eq.sum_range_sq_m2;
         total.num_valid += eq.num_valid;
+        total.num_oblique += eq.num_oblique;
     }
     return total;
 }
@@ -251,7 +263,7 @@ NormalEquations build_normal_equations(const std::vector<Eigen::Vector3f>& point
                                        const PointResiduals& residuals,
                                        const RobustKernel& kernel) {
     return registration_solver_internal::build_equations<6>(
-        points_sensor, T_world_sensor, residuals, kernel, nullptr, Vector6d::Zero());
+        points_sensor, T_world_sensor, residuals, kernel, 0.0, nullptr, Vector6d::Zero());
 }
 
 double scaled_condition_number(const Matrix6d& H, double range_m) {
@@ -292,8 +304,8 @@ RegistrationResult solve(const std::vector<Eigen::Vector3f>& points_sensor,
     // What the prior added to the pose block of the current iterate's H (Eq. (5)).
     Matrix6d prior_pose_block = Matrix6d::Zero();
     const auto build = [&](const Eigen::Isometry3d& T, const Vector6d& xi, Matrix6d& prior_block) {
-        NormalEquationsOf<N> eq =
-            build_equations<N>(points_sensor, T, residuals, config.kernel, sweep, xi);
+        NormalEquationsOf<N> eq = build_equations<N>(points_sensor, T, residuals, config.kernel,
+                                                     config.min_incidence_cosine, sweep, xi);
         if constexpr (N == 12) prior_block = add_sweep_prior(eq, *sweep, prior_weights, T, xi);
         return eq;
     };
@@ -305,6 +317,7 @@ RegistrationResult solve(const std::vector<Eigen::Vector3f>& points_sensor,
         result.T_world_sensor_solved = T;
         result.final_cost = eq.cost;
         result.num_valid_points = eq.num_valid;
+        result.num_oblique_points = eq.num_oblique;
         const double range_m =
             eq.num_valid > 0 ? std::sqrt(eq.sum_range_sq_m2 / double(eq.num_valid)) : 0.0;
         result.condition_number = scaled_condition_number(

@@ -89,6 +89,12 @@ struct RegistrationSolverConfig {
     /// evaluation of every point). false: the solve ends where it is, without that evaluation;
     /// the pose then differs from the tried step's by less than the thresholds.
     bool try_converged_step = true;
+    /// A point whose ray meets its residual's surface at a grazing angle is left out: where
+    /// |cos| of the angle between the ray (from the sensor frame's origin to the point, at the
+    /// current iterate) and the residual's gradient is below this. Such points carry little of a
+    /// pose's constraint and most of a young map's error: ground far from a car is seen only at
+    /// grazing angles (scan_odometry.hpp). 0 keeps every point.
+    double min_incidence_cosine = 0.0;
     RobustKernel kernel;
 };
 
@@ -131,8 +137,11 @@ struct RegistrationResult {
     double final_cost = 0.0;    ///< E at the returned solve's last iterate
     /// Condition number of the range-scaled H at the last iterate (infinity when singular).
     double condition_number = 0.0;
-    std::size_t num_points = 0;        ///< points given
-    std::size_t num_valid_points = 0;  ///< points with a residual at the last iterate
+    std::size_t num_points = 0;  ///< points given
+    /// Points used at the last iterate: with a residual and not too oblique (min_incidence_cosine).
+    std::size_t num_valid_points = 0;
+    /// Points with a residual at the last iterate that were left out as too oblique.
+    std::size_t num_oblique_points = 0;
     /// With a SweepModel: the sweep's twist at the last iterate (the prior's when not accepted).
     Vector6d sweep_twist = Vector6d::Zero();
 
@@ -170,6 +179,7 @@ struct NormalEquationsOf {
     double cost = 0.0;                                                    ///< sum rho(r)
     double sum_range_sq_m2 = 0.0;  ///< sum |p|^2 over valid points (sensor frame, deskewed)
     std::size_t num_valid = 0;
+    std::size_t num_oblique = 0;  ///< with a residual, left out (min_incidence_cosine)
 };
 /// Eq. (2)'s (for tests and diagnostics).
 using NormalEquations = NormalEquationsOf<6>;
