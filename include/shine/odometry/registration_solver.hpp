@@ -93,7 +93,7 @@ struct RegistrationSolverConfig {
     /// |cos| of the angle between the ray (from the sensor frame's origin to the point, at the
     /// current iterate) and the residual's gradient is below this. Such points carry little of a
     /// pose's constraint and most of a young map's error: ground far from a car is seen only at
-    /// grazing angles (scan_odometry.hpp). 0 keeps every point.
+    /// grazing angles (odometry_config.hpp). 0 keeps every point.
     double min_incidence_cosine = 0.0;
     RobustKernel kernel;
 };
