@@ -86,6 +86,7 @@ TEST(MapperConfigScale, OutdoorTenCentimetreLeavesKeepTheRanges) {
     EXPECT_EQ(c.resolved_scene(), ScenePreset::kOutdoor);
     EXPECT_EQ(c.preprocess.min_range_m, 1.5);
     EXPECT_EQ(c.preprocess.max_range_m, 60.0);
+    EXPECT_EQ(c.odometry.max_range_m, 30.0);  // the registration's own, half the mapped range
     EXPECT_NEAR(c.preprocess.voxel_downsample_m, 0.1, kFloatToleranceM);
     EXPECT_NEAR(c.sampling.surface_band_m, 0.1, kFloatToleranceM);  // the scene's, not the leaf's
     EXPECT_NEAR(c.trainer.sigma_m, 0.025, kFloatToleranceM);
@@ -131,6 +132,7 @@ TEST(MapperConfigScale, SceneAloneChoosesLeafAndRanges) {
     EXPECT_EQ(indoor.octree.leaf_size_m, 0.05);
     EXPECT_EQ(indoor.preprocess.min_range_m, 0.3);
     EXPECT_EQ(indoor.preprocess.max_range_m, 20.0);
+    EXPECT_EQ(indoor.odometry.max_range_m, 20.0);  // the scene's whole range, as before
     // A set leaf wins over the preset's; the preset still decides the ranges.
     const MapperConfig outdoor_fine = finalized("map:\n  scene: outdoor\n  leaf_size_m: 0.05\n");
     EXPECT_EQ(outdoor_fine.octree.leaf_size_m, 0.05);

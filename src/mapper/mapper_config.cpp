@@ -475,7 +475,10 @@ void apply_scale_free_defaults(MapperConfig& c) {
     // Pose estimation: its range crop is the scene's, its lengths follow the leaf.
     from_scene(c.odometry.min_range_m, outdoor.odometry.min_range_m, scene.min_range_m,
                "odometry.min_range_m");
-    from_scene(c.odometry.max_range_m, outdoor.odometry.max_range_m, scene.max_range_m,
+    // Outdoors the registration keeps its own, shorter range (odometry_config.hpp).
+    from_scene(c.odometry.max_range_m, outdoor.odometry.max_range_m,
+               c.resolved_scene() == ScenePreset::kOutdoor ? outdoor.odometry.max_range_m
+                                                           : scene.max_range_m,
                "odometry.max_range_m");
     follow_leaf(c.odometry.voxel_size_m, outdoor.odometry.voxel_size_m, "odometry.voxel_size_m");
     follow_leaf(c.odometry.icp_max_correspondence_m, outdoor.odometry.icp_max_correspondence_m,
