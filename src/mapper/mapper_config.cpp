@@ -472,14 +472,14 @@ void apply_scale_free_defaults(MapperConfig& c) {
     follow_leaf(c.trainer.sigma_m, outdoor.trainer.sigma_m, "training.sigma_m");
     follow_leaf(c.incremental.surface_band_m, outdoor.incremental.surface_band_m,
                 "incremental.surface_band_m");
-    // Pose estimation: its range crop is the scene's, its lengths follow the leaf.
+    // Pose estimation: its range crop is the scene's, except outdoors, where the registration
+    // keeps its own, shorter far end (odometry_config.hpp); its lengths follow the leaf.
     from_scene(c.odometry.min_range_m, outdoor.odometry.min_range_m, scene.min_range_m,
                "odometry.min_range_m");
-    // Outdoors the registration keeps its own, shorter range (odometry_config.hpp).
-    from_scene(c.odometry.max_range_m, outdoor.odometry.max_range_m,
-               c.resolved_scene() == ScenePreset::kOutdoor ? outdoor.odometry.max_range_m
-                                                           : scene.max_range_m,
-               "odometry.max_range_m");
+    if (c.resolved_scene() != ScenePreset::kOutdoor) {
+        from_scene(c.odometry.max_range_m, outdoor.odometry.max_range_m, scene.max_range_m,
+                   "odometry.max_range_m");
+    }
     follow_leaf(c.odometry.voxel_size_m, outdoor.odometry.voxel_size_m, "odometry.voxel_size_m");
     follow_leaf(c.odometry.icp_max_correspondence_m, outdoor.odometry.icp_max_correspondence_m,
                 "odometry.icp_max_correspondence_m");
